@@ -1,0 +1,64 @@
+//! Pipeline benchmarks: the estimate for one face once it is detected (target <= 1 ms), and
+//! face detection on a 1920x1080 frame. Correction speed is in `benches/warp.rs`.
+//!
+//! Run: `cargo bench --bench pipeline`.
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use image::imageops::FilterType;
+use unshear::Unshear;
+
+fn fixture() -> image::DynamicImage {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/fixtures/faces/subject01.normal.jpeg"
+    );
+    match unshear::imageio::read_image(path.as_ref(), unshear::imageio::DEFAULT_MAX_PIXELS) {
+        Ok(img) => img,
+        Err(e) => panic!("fixture: {e}"),
+    }
+}
+
+fn single_thread<R>(f: impl FnOnce() -> R + Send) -> R
+where
+    R: Send,
+{
+    match rayon::ThreadPoolBuilder::new().num_threads(1).build() {
+        Ok(pool) => pool.install(f),
+        Err(e) => panic!("thread pool: {e}"),
+    }
+}
+
+fn bench(c: &mut Criterion) {
+    let unshear = match Unshear::with_defaults() {
+        Ok(u) => u,
+        Err(e) => panic!("models: {e}"),
+    };
+    let img = fixture();
+    let gray = Unshear::gray(&img);
+    let face = unshear.detector().detect(&gray)[0];
+    c.bench_function("estimate one face (after detection)", |b| {
+        b.iter(|| unshear.estimate_face(&gray, face))
+    });
+
+    // A 1920x1080 frame: the fixture enlarged to full height, on a mid-grey canvas.
+    let big = img.resize(1920, 1080, FilterType::Triangle).to_luma8();
+    let mut frame = image::GrayImage::from_pixel(1920, 1080, image::Luma([128]));
+    image::imageops::overlay(&mut frame, &big, ((1920 - big.width()) / 2) as i64, 0);
+    let mut group = c.benchmark_group("detect 1920x1080");
+    group.sample_size(10);
+    group.bench_function("1 thread", |b| {
+        single_thread(|| b.iter(|| unshear.detector().detect(&frame)))
+    });
+    group.bench_function("all threads", |b| {
+        b.iter(|| unshear.detector().detect(&frame))
+    });
+    group.finish();
+
+    let mut group = c.benchmark_group("estimate whole 1920x1080 frame");
+    group.sample_size(10);
+    group.bench_function("all threads", |b| b.iter(|| unshear.estimate_gray(&frame)));
+    group.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

@@ -1,0 +1,254 @@
+//! Command-line arguments (clap derive). Usage errors exit with code 2 (clap's default).
+
+use std::path::PathBuf;
+
+use clap::{Args, Parser, Subcommand, ValueEnum};
+
+/// Remove rolling-shutter skew (horizontal shear) from photos of people, using the face as the
+/// ruler.
+#[derive(Debug, Parser)]
+#[command(name = "unshear", version, about, long_about = None, max_term_width = 100)]
+pub struct Cli {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Estimate the shear and write corrected images.
+    Correct(CorrectArgs),
+    /// Estimate the shear of images (files or folders, recursively) without writing any.
+    Estimate(EstimateArgs),
+    /// Synthesise rolling-shutter shear: x' = x + k (y - pivot).
+    Distort(DistortArgs),
+    /// Train the eye filters from an annotated data set (Caltech Web Faces layout).
+    Train(TrainArgs),
+    /// Measure accuracy on annotated faces sheared synthetically.
+    Eval(EvalArgs),
+}
+
+/// Models and limits shared by the commands that look at faces.
+#[derive(Debug, Args)]
+pub struct ModelArgs {
+    /// OpenCV Haar cascade XML to detect faces with [default: built-in frontalface_alt2].
+    #[arg(long, value_name = "FILE")]
+    pub cascade: Option<PathBuf>,
+    /// Filter file made by `unshear train` [default: built-in].
+    #[arg(long, value_name = "PATH")]
+    pub filters: Option<PathBuf>,
+    /// Refuse images with more pixels than this (checked before decoding).
+    #[arg(long, value_name = "N", default_value_t = unshear::imageio::DEFAULT_MAX_PIXELS)]
+    pub max_pixels: u64,
+    /// Worker threads [default: one per core].
+    #[arg(long, short = 'j', value_name = "N")]
+    pub jobs: Option<usize>,
+}
+
+/// `unshear estimate`.
+#[derive(Debug, Args)]
+pub struct EstimateArgs {
+    /// Image files or folders (searched recursively for images).
+    #[arg(required = true, value_name = "IN")]
+    pub inputs: Vec<PathBuf>,
+    /// Print one JSON object per input, one per line.
+    #[arg(long)]
+    pub json: bool,
+    #[command(flatten)]
+    pub model: ModelArgs,
+}
+
+/// `unshear correct`.
+#[derive(Debug, Args)]
+pub struct CorrectArgs {
+    /// Image files or folders (searched recursively for images).
+    #[arg(required = true, value_name = "IN")]
+    pub inputs: Vec<PathBuf>,
+    /// Output file (one input only) [default: IN with `.unshear` before the extension].
+    #[arg(
+        short = 'o',
+        long = "output",
+        value_name = "OUT",
+        conflicts_with = "out_dir"
+    )]
+    pub output: Option<PathBuf>,
+    /// Write outputs into this folder (created if needed), keeping file names and sub-folders.
+    #[arg(long, value_name = "DIR")]
+    pub out_dir: Option<PathBuf>,
+    /// Use this shear instead of estimating it.
+    #[arg(long, value_name = "K", allow_negative_numbers = true)]
+    pub k: Option<f64>,
+    /// What to correct.
+    #[arg(long, value_enum, default_value_t = RegionArg::Image)]
+    pub region: RegionArg,
+    /// Output size: the input's, expanded so nothing is cut off, or cropped to valid pixels.
+    #[arg(long, value_enum, default_value_t = CanvasArg::Same)]
+    pub canvas: CanvasArg,
+    /// Row resampling.
+    #[arg(long, value_enum, default_value_t = InterpArg::Linear)]
+    pub interp: InterpArg,
+    /// Also write a PNG showing the face box, eyes, nostrils and estimated face axis (one input).
+    #[arg(long, value_name = "PNG")]
+    pub annotate: Option<PathBuf>,
+    /// Print one JSON object per input, one per line.
+    #[arg(long)]
+    pub json: bool,
+    /// Replace existing output files (inputs are never overwritten).
+    #[arg(long)]
+    pub force: bool,
+    #[command(flatten)]
+    pub model: ModelArgs,
+}
+
+/// `unshear distort`.
+#[derive(Debug, Args)]
+pub struct DistortArgs {
+    /// Input image.
+    #[arg(value_name = "IN")]
+    pub input: PathBuf,
+    /// The shear to apply.
+    #[arg(long, value_name = "K", allow_negative_numbers = true)]
+    pub k: f64,
+    /// Output image.
+    #[arg(short = 'o', long = "output", value_name = "OUT")]
+    pub output: PathBuf,
+    /// Pivot row (the row that does not move) [default: the middle row, H/2].
+    #[arg(long, value_name = "Y", allow_negative_numbers = true)]
+    pub pivot: Option<f64>,
+    /// Output size.
+    #[arg(long, value_enum, default_value_t = CanvasArg::Same)]
+    pub canvas: CanvasArg,
+    /// Row resampling.
+    #[arg(long, value_enum, default_value_t = InterpArg::Linear)]
+    pub interp: InterpArg,
+    /// Replace an existing output file.
+    #[arg(long)]
+    pub force: bool,
+    /// Refuse images with more pixels than this.
+    #[arg(long, value_name = "N", default_value_t = unshear::imageio::DEFAULT_MAX_PIXELS)]
+    pub max_pixels: u64,
+}
+
+/// `unshear train`.
+#[derive(Debug, Args)]
+pub struct TrainArgs {
+    /// Data-set folder with `ground_truth.txt` and `images/` (Caltech 10k Web Faces layout).
+    #[arg(
+        long,
+        value_name = "DIR",
+        default_value = "../shared/data/caltech-webfaces"
+    )]
+    pub data: PathBuf,
+    /// Skip faces whose eye distance is below this many pixels.
+    #[arg(long, value_name = "PX", default_value_t = 30.0)]
+    pub min_eye_distance: f64,
+    /// Also train on the mirror image of every face.
+    #[arg(long)]
+    pub mirror: bool,
+    /// Output filter file.
+    #[arg(short = 'o', long = "output", value_name = "PATH")]
+    pub output: PathBuf,
+    /// Replace an existing output file.
+    #[arg(long)]
+    pub force: bool,
+}
+
+/// `unshear eval`.
+#[derive(Debug, Args)]
+pub struct EvalArgs {
+    /// What to evaluate.
+    #[command(subcommand)]
+    pub what: EvalCommand,
+}
+
+/// The evaluations.
+#[derive(Debug, Subcommand)]
+pub enum EvalCommand {
+    /// Shear estimation on annotated faces sheared synthetically, detection included.
+    Shear(EvalShearArgs),
+}
+
+/// `unshear eval shear`.
+#[derive(Debug, Args)]
+pub struct EvalShearArgs {
+    /// Data-set folder (Caltech 10k Web Faces layout).
+    #[arg(
+        long,
+        value_name = "DIR",
+        default_value = "../shared/data/caltech-webfaces"
+    )]
+    pub data: PathBuf,
+    /// Shears to apply, comma-separated.
+    #[arg(long, value_name = "K,...", value_delimiter = ',', allow_negative_numbers = true,
+          default_values_t = [0.0, -0.14, 0.14, -0.20, 0.20, -0.33, 0.33, -0.40, 0.40])]
+    pub k: Vec<f64>,
+    /// Only faces whose eye distance is at least this many pixels.
+    #[arg(long, value_name = "PX", default_value_t = 40.0)]
+    pub min_eye_distance: f64,
+    /// Use at most this many faces (the first, in data-set order).
+    #[arg(long, value_name = "N")]
+    pub limit: Option<usize>,
+    /// Also write every sample as CSV here.
+    #[arg(long, value_name = "FILE")]
+    pub csv: Option<PathBuf>,
+    #[command(flatten)]
+    pub model: ModelArgs,
+}
+
+/// `--region`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum RegionArg {
+    /// The whole image, one shear.
+    Image,
+    /// Each face region with its own shear.
+    Face,
+}
+
+/// `--canvas`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum CanvasArg {
+    /// The input's size.
+    Same,
+    /// Large enough that nothing is cut off.
+    Expand,
+    /// The largest rectangle holding only valid pixels.
+    Crop,
+}
+
+/// `--interp`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum InterpArg {
+    /// Two-tap linear.
+    Linear,
+    /// Four-tap Catmull-Rom cubic.
+    Cubic,
+}
+
+impl From<RegionArg> for unshear::pipeline::Region {
+    fn from(r: RegionArg) -> Self {
+        match r {
+            RegionArg::Image => Self::Image,
+            RegionArg::Face => Self::Face,
+        }
+    }
+}
+
+impl From<CanvasArg> for unshear::warp::Canvas {
+    fn from(c: CanvasArg) -> Self {
+        match c {
+            CanvasArg::Same => Self::Same,
+            CanvasArg::Expand => Self::Expand,
+            CanvasArg::Crop => Self::Crop,
+        }
+    }
+}
+
+impl From<InterpArg> for unshear::warp::Interpolation {
+    fn from(i: InterpArg) -> Self {
+        match i {
+            InterpArg::Linear => Self::Linear,
+            InterpArg::Cubic => Self::Cubic,
+        }
+    }
+}

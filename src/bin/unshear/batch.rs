@@ -1,0 +1,167 @@
+//! Many inputs: collecting files from the paths given, running them in parallel, and handing
+//! the results back in input order (so output is reproducible), with a progress bar on stderr
+//! when stderr is a terminal.
+
+use std::collections::BTreeMap;
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::sync::mpsc;
+
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use rayon::prelude::*;
+
+/// File extensions picked up when walking a folder (files named directly are always tried).
+pub const IMAGE_EXTENSIONS: &[&str] = &[
+    "jpg", "jpeg", "png", "pgm", "ppm", "pnm", "pbm", "bmp", "tif", "tiff", "webp",
+];
+
+/// One input: the path as the user should see it, and the folder it was found under (for
+/// `--out-dir`, which keeps the sub-folder structure below that root).
+#[derive(Debug, Clone)]
+pub struct Input {
+    /// The file.
+    pub path: PathBuf,
+    /// The folder given on the command line that contains it, if it came from a folder walk.
+    pub root: Option<PathBuf>,
+}
+
+/// Expands folders (recursively, in name order) into image files; a path that cannot be walked
+/// becomes an input that fails with its own error, so the rest of the batch goes on.
+///
+/// Files whose stem ends in `.unshear` (this tool's own outputs) are skipped in folders, so
+/// running twice over a folder does not correct the corrections.
+pub fn collect_inputs(paths: &[PathBuf]) -> Vec<Result<Input, (PathBuf, String)>> {
+    let mut out = Vec::new();
+    for p in paths {
+        if p.is_dir() {
+            // Symbolic links are not followed, so link loops cannot trap the walk.
+            for entry in walkdir::WalkDir::new(p)
+                .follow_links(false)
+                .sort_by_file_name()
+            {
+                match entry {
+                    Ok(e) if e.file_type().is_file() && is_image_name(e.path()) => {
+                        out.push(Ok(Input {
+                            path: e.path().to_path_buf(),
+                            root: Some(p.clone()),
+                        }))
+                    }
+                    Ok(_) => {}
+                    Err(err) => {
+                        let at = err.path().unwrap_or(p).to_path_buf();
+                        out.push(Err((at, err.to_string())));
+                    }
+                }
+            }
+        } else {
+            out.push(Ok(Input {
+                path: p.clone(),
+                root: None,
+            }));
+        }
+    }
+    out
+}
+
+fn is_image_name(p: &Path) -> bool {
+    let ext_ok = p
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| IMAGE_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()));
+    let own_output = p
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .is_some_and(|s| s.ends_with(".unshear"));
+    ext_ok && !own_output
+}
+
+/// Runs `work` on every item in parallel and calls `emit` with each result in item order, as
+/// soon as all earlier items are done. `emit` runs on the calling thread.
+pub fn run_ordered<T, R, W, E>(items: &[T], work: W, mut emit: E)
+where
+    T: Sync,
+    R: Send,
+    W: Fn(&T) -> R + Sync,
+    E: FnMut(&T, R, &ProgressBar),
+{
+    let progress = progress_bar(items.len() as u64);
+    let (tx, rx) = mpsc::channel();
+    std::thread::scope(|scope| {
+        let work = &work;
+        scope.spawn(move || {
+            items
+                .par_iter()
+                .enumerate()
+                .for_each_with(tx, |tx, (i, item)| {
+                    // The receiver only goes away if the caller panicked; nothing to report then.
+                    let _ = tx.send((i, work(item)));
+                });
+        });
+        let mut pending = BTreeMap::new();
+        let mut next = 0;
+        for (i, r) in rx {
+            pending.insert(i, r);
+            while let Some(r) = pending.remove(&next) {
+                emit(&items[next], r, &progress);
+                progress.inc(1);
+                next += 1;
+            }
+        }
+    });
+    progress.finish_and_clear();
+}
+
+fn progress_bar(len: u64) -> ProgressBar {
+    if len < 2 || !std::io::stderr().is_terminal() {
+        return ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::hidden());
+    }
+    let bar = ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::stderr());
+    if let Ok(style) =
+        ProgressStyle::with_template("{bar:40} {pos}/{len} {per_sec} eta {eta} {wide_msg}")
+    {
+        bar.set_style(style);
+    }
+    bar
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn folder_walk_picks_images_in_order_and_skips_own_outputs() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        for name in ["b.jpg", "a.PNG", "notes.txt", "a.unshear.png"] {
+            std::fs::write(dir.path().join(name), b"x").expect("write");
+        }
+        std::fs::create_dir(dir.path().join("sub")).expect("mkdir");
+        std::fs::write(dir.path().join("sub/c.webp"), b"x").expect("write");
+        let found: Vec<String> = collect_inputs(&[dir.path().to_path_buf()])
+            .into_iter()
+            .filter_map(Result::ok)
+            .map(|i| {
+                i.path
+                    .strip_prefix(dir.path())
+                    .expect("under root")
+                    .display()
+                    .to_string()
+            })
+            .collect();
+        assert_eq!(found, ["a.PNG", "b.jpg", "sub/c.webp"]);
+    }
+
+    #[test]
+    fn results_come_back_in_order() {
+        let items: Vec<u64> = (0..50).collect();
+        let mut seen = Vec::new();
+        run_ordered(
+            &items,
+            |&i| {
+                std::thread::sleep(std::time::Duration::from_micros((50 - i) * 20));
+                i * 2
+            },
+            |&i, r, _| seen.push((i, r)),
+        );
+        assert_eq!(seen, items.iter().map(|&i| (i, i * 2)).collect::<Vec<_>>());
+    }
+}

@@ -1,0 +1,396 @@
+//! `unshear`: the command-line tool. Argument parsing lives in [`args`], batch running in
+//! [`batch`], the JSON line in [`report`]; this file wires them to the library.
+//!
+//! Exit codes: 0 every input handled; 1 some input failed (the others were still processed);
+//! 2 usage error.
+
+mod args;
+mod batch;
+mod report;
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use anyhow::{bail, Context, Result};
+use clap::Parser;
+
+use args::{
+    Cli, Command, CorrectArgs, DistortArgs, EstimateArgs, EvalCommand, EvalShearArgs, ModelArgs,
+    TrainArgs,
+};
+use batch::{collect_inputs, run_ordered, Input};
+use report::JsonLine;
+use unshear::detect::{Cascade, DetectorParams, FaceDetector};
+use unshear::filters::EyeFilters;
+use unshear::imageio::{self, WriteOptions};
+use unshear::pipeline::{CorrectOptions, ImageReport, Region};
+use unshear::{Shear, Unshear};
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Estimate(a) => estimate(a),
+        Command::Correct(a) => correct(a),
+        Command::Distort(a) => distort(a).map(|()| true),
+        Command::Train(a) => train(a).map(|()| true),
+        Command::Eval(e) => match e.what {
+            EvalCommand::Shear(a) => eval_shear(a).map(|()| true),
+        },
+    };
+    match result {
+        Ok(true) => ExitCode::SUCCESS,
+        Ok(false) => ExitCode::from(1),
+        Err(e) => {
+            eprintln!("unshear: {e:#}");
+            ExitCode::from(1)
+        }
+    }
+}
+
+/// Builds the corrector from `--cascade`/`--filters` (built-in defaults otherwise) and sizes the
+/// thread pool.
+fn load_models(m: &ModelArgs) -> Result<Unshear> {
+    if let Some(jobs) = m.jobs {
+        // Only fails if a global pool exists already, which nothing here creates before.
+        let _ = rayon::ThreadPoolBuilder::new()
+            .num_threads(jobs.max(1))
+            .build_global();
+    }
+    let detector = match &m.cascade {
+        Some(p) => FaceDetector::new(
+            Cascade::from_file(p).with_context(|| format!("loading cascade {}", p.display()))?,
+            DetectorParams::default(),
+        ),
+        None => FaceDetector::frontal_face(),
+    };
+    let filters = match &m.filters {
+        Some(p) => {
+            EyeFilters::from_file(p).with_context(|| format!("loading filters {}", p.display()))?
+        }
+        None => EyeFilters::embedded().context("loading the built-in filters")?,
+    };
+    Ok(Unshear::new(detector, filters))
+}
+
+/// Prints a line to stdout, ignoring a closed pipe (e.g. `| head`) rather than panicking.
+fn print_line(line: &str) {
+    let mut out = std::io::stdout().lock();
+    let _ = writeln!(out, "{line}");
+}
+
+fn display(p: &Path) -> String {
+    p.display().to_string()
+}
+
+fn describe(report: &ImageReport) -> String {
+    match report.k {
+        Some(k) => {
+            let n = report.faces.len();
+            let conf = report
+                .faces
+                .iter()
+                .map(|f| f.confidence)
+                .fold(f64::NEG_INFINITY, f64::max);
+            format!(
+                "k = {k:+.3} ({n} face{}, best confidence {conf:.1})",
+                if n == 1 { "" } else { "s" }
+            )
+        }
+        None => "no face found".to_string(),
+    }
+}
+
+fn estimate(a: EstimateArgs) -> Result<bool> {
+    let unshear = load_models(&a.model)?;
+    let inputs = collect_inputs(&a.inputs);
+    let mut all_ok = true;
+    run_ordered(
+        &inputs,
+        |input| -> Result<ImageReport, String> {
+            let input = input.as_ref().map_err(|(_, e)| e.clone())?;
+            let img =
+                imageio::read_image(&input.path, a.model.max_pixels).map_err(|e| e.to_string())?;
+            Ok(unshear.estimate(&img))
+        },
+        |input, result, bar| {
+            let file = match input {
+                Ok(i) => display(&i.path),
+                Err((p, _)) => display(p),
+            };
+            match result {
+                Ok(report) if a.json => print_line(&JsonLine::ok(&file, &report).to_line()),
+                Ok(report) => bar.suspend(|| print_line(&format!("{file}: {}", describe(&report)))),
+                Err(e) => {
+                    all_ok = false;
+                    if a.json {
+                        print_line(&JsonLine::error(&file, e.clone()).to_line());
+                    }
+                    bar.suspend(|| eprintln!("unshear: {file}: {e}"));
+                }
+            }
+        },
+    );
+    Ok(all_ok)
+}
+
+/// Where the corrected image of `input` goes.
+fn output_path(a: &CorrectArgs, input: &Input) -> Result<PathBuf> {
+    if let Some(o) = &a.output {
+        return Ok(o.clone());
+    }
+    let name = input.path.file_name().context("input has no file name")?;
+    if let Some(dir) = &a.out_dir {
+        let relative = input
+            .root
+            .as_ref()
+            .and_then(|root| input.path.strip_prefix(root).ok())
+            .map(Path::to_path_buf)
+            .unwrap_or_else(|| PathBuf::from(name));
+        return Ok(dir.join(relative));
+    }
+    let stem = input.path.file_stem().unwrap_or(name).to_string_lossy();
+    let file = match input.path.extension() {
+        Some(ext) => format!("{stem}.unshear.{}", ext.to_string_lossy()),
+        None => format!("{stem}.unshear.png"),
+    };
+    Ok(input.path.with_file_name(file))
+}
+
+/// What happened to one input of `correct`.
+enum Corrected {
+    Written(ImageReport, PathBuf),
+    NoFace(ImageReport),
+}
+
+fn correct_one(
+    a: &CorrectArgs,
+    unshear: &Unshear,
+    input: &Input,
+    protected: &[PathBuf],
+) -> Result<Corrected> {
+    let out = output_path(a, input)?;
+    if !imageio::output_format_supported(&out) {
+        bail!(
+            "{}: unsupported output format (use .jpg, .png, .pgm/.ppm, .bmp, .tif or .webp)",
+            out.display()
+        );
+    }
+    let img = imageio::read_image(&input.path, a.model.max_pixels)?;
+    let report = unshear.estimate(&img);
+    if let Some(annotate) = &a.annotate {
+        create_parent(annotate)?;
+        let picture = unshear::annotate::draw_annotations(&img, &report.marks());
+        imageio::write_image_atomic(
+            &image::DynamicImage::ImageRgb8(picture),
+            annotate,
+            WriteOptions {
+                overwrite: a.force,
+                protected: protected.to_vec(),
+                ..Default::default()
+            },
+        )?;
+    }
+    let options = CorrectOptions {
+        region: a.region.into(),
+        canvas: a.canvas.into(),
+        interpolation: a.interp.into(),
+        k: a.k,
+    };
+    let nothing_to_apply = match options.region {
+        Region::Image => options.k.is_none() && report.k.is_none(),
+        Region::Face => report.faces.is_empty(),
+    };
+    if nothing_to_apply {
+        return Ok(Corrected::NoFace(report));
+    }
+    let fixed = unshear.correct(&img, &report, &options)?;
+    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent)
+            .with_context(|| format!("creating {}", parent.display()))?;
+    }
+    imageio::write_image_atomic(
+        &fixed,
+        &out,
+        WriteOptions {
+            overwrite: a.force,
+            protected: protected.to_vec(),
+            ..Default::default()
+        },
+    )?;
+    Ok(Corrected::Written(report, out))
+}
+
+/// Creates the folder an output goes into, if it does not exist.
+fn create_parent(path: &Path) -> Result<()> {
+    if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent)
+            .with_context(|| format!("creating {}", parent.display()))?;
+    }
+    Ok(())
+}
+
+fn correct(a: CorrectArgs) -> Result<bool> {
+    let inputs = collect_inputs(&a.inputs);
+    if inputs.len() > 1 && a.output.is_some() {
+        usage_error("-o/--output takes one input; use --out-dir for several");
+    }
+    if inputs.len() > 1 && a.annotate.is_some() {
+        usage_error("--annotate takes one input");
+    }
+    if let Some(k) = a.k {
+        if !k.is_finite() {
+            usage_error("--k must be a finite number");
+        }
+    }
+    let unshear = load_models(&a.model)?;
+    // Every input is protected from being written over, whatever the output naming does.
+    let protected: Vec<PathBuf> = inputs
+        .iter()
+        .filter_map(|i| i.as_ref().ok().map(|i| i.path.clone()))
+        .collect();
+    let mut all_ok = true;
+    run_ordered(
+        &inputs,
+        |input| -> Result<Corrected, String> {
+            let input = input.as_ref().map_err(|(_, e)| e.clone())?;
+            correct_one(&a, &unshear, input, &protected).map_err(|e| format!("{e:#}"))
+        },
+        |input, result, bar| {
+            let file = match input {
+                Ok(i) => display(&i.path),
+                Err((p, _)) => display(p),
+            };
+            match result {
+                Ok(Corrected::Written(report, out)) => {
+                    if a.json {
+                        print_line(&JsonLine::ok(&file, &report).to_line());
+                    } else {
+                        let how = match a.k {
+                            Some(k) => format!("k = {k:+.3} (given)"),
+                            None => describe(&report),
+                        };
+                        bar.suspend(|| print_line(&format!("{file}: {how} -> {}", out.display())));
+                    }
+                }
+                Ok(Corrected::NoFace(report)) => {
+                    if a.json {
+                        print_line(&JsonLine::ok(&file, &report).to_line());
+                    }
+                    bar.suspend(|| eprintln!("unshear: {file}: no face found; nothing written (give --k to correct anyway)"));
+                }
+                Err(e) => {
+                    all_ok = false;
+                    if a.json {
+                        print_line(&JsonLine::error(&file, e.clone()).to_line());
+                    }
+                    bar.suspend(|| eprintln!("unshear: {file}: {e}"));
+                }
+            }
+        },
+    );
+    Ok(all_ok)
+}
+
+/// Reports a usage error the way clap does (exit code 2).
+fn usage_error(message: &str) -> ! {
+    let mut cmd = <Cli as clap::CommandFactory>::command();
+    cmd.error(clap::error::ErrorKind::ArgumentConflict, message)
+        .exit()
+}
+
+fn distort(a: DistortArgs) -> Result<()> {
+    if !a.k.is_finite() || a.pivot.is_some_and(|p| !p.is_finite()) {
+        usage_error("--k and --pivot must be finite numbers");
+    }
+    if !imageio::output_format_supported(&a.output) {
+        bail!("{}: unsupported output format", a.output.display());
+    }
+    let img = imageio::read_image(&a.input, a.max_pixels)?;
+    let shear = match a.pivot {
+        Some(p) => Shear::new(a.k, p),
+        None => Shear::about_middle(a.k, img.height()),
+    };
+    let (out, _) = unshear::warp::try_apply_shear(&img, shear, a.interp.into(), a.canvas.into())?;
+    imageio::write_image_atomic(
+        &out,
+        &a.output,
+        WriteOptions {
+            overwrite: a.force,
+            protected: vec![a.input.clone()],
+            ..Default::default()
+        },
+    )?;
+    Ok(())
+}
+
+fn train(a: TrainArgs) -> Result<()> {
+    use unshear::dataset::{CaltechWebFaces, FaceDataset};
+    let faces = CaltechWebFaces::new(&a.data)
+        .faces()
+        .with_context(|| format!("reading the data set in {}", a.data.display()))?;
+    let options = unshear::train::TrainOptions {
+        min_eye_distance: a.min_eye_distance,
+        mirror: a.mirror,
+        ..Default::default()
+    };
+    let (filters, summary) = unshear::train::train_eye_filters(faces, &options)?;
+    for u in &summary.unreadable {
+        eprintln!("unshear: skipped {u}");
+    }
+    let path = &a.output;
+    let bytes = filters.to_bytes();
+    imageio::write_atomic(
+        path,
+        &WriteOptions {
+            overwrite: a.force,
+            ..Default::default()
+        },
+        |w| {
+            w.write_all(&bytes).map_err(|source| unshear::Error::Io {
+                path: path.clone(),
+                source,
+            })
+        },
+    )?;
+    eprintln!(
+        "unshear: trained on {} faces ({} eye patches per eye{}; {} faces below {} px eye distance skipped) -> {}",
+        summary.faces,
+        filters.right_eye.training_count,
+        if a.mirror { ", mirrored copies included" } else { "" },
+        summary.too_small,
+        a.min_eye_distance,
+        path.display()
+    );
+    Ok(())
+}
+
+fn eval_shear(a: EvalShearArgs) -> Result<()> {
+    use unshear::dataset::{CaltechWebFaces, FaceDataset};
+    use unshear::eval::{evaluate_shear, ShearEvalOptions};
+    let unshear = load_models(&a.model)?;
+    let mut faces: Vec<_> = CaltechWebFaces::new(&a.data)
+        .faces()
+        .with_context(|| format!("reading the data set in {}", a.data.display()))?
+        .into_iter()
+        .filter(|f| f.eye_distance() >= a.min_eye_distance)
+        .collect();
+    if let Some(n) = a.limit {
+        faces.truncate(n);
+    }
+    let options = ShearEvalOptions {
+        shears: a.k.clone(),
+        max_pixels: a.model.max_pixels,
+    };
+    let bar = indicatif::ProgressBar::new((faces.len() * a.k.len()) as u64);
+    if !std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+        bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
+    }
+    let result = evaluate_shear(&unshear, &faces, &options, || bar.inc(1));
+    bar.finish_and_clear();
+    print!("{}", result.markdown());
+    if let Some(csv) = &a.csv {
+        std::fs::write(csv, result.csv()).with_context(|| format!("writing {}", csv.display()))?;
+    }
+    Ok(())
+}

@@ -1,0 +1,491 @@
+//! The multi-scale sliding-window search, a re-implementation of OpenCV 4's
+//! `CascadeClassifier::detectMultiScale` for Haar cascades (cascadedetect.cpp).
+//!
+//! OpenCV's choices are copied because they decide which windows are looked at and how each is
+//! scored, and thus which boxes come out:
+//!
+//! * Scales are `1, s, s², …` (accumulated in `f64`, then stored as `f32`) while the scaled
+//!   window `round(win · factor)` fits in the image; `min_size`/`max_size` filter that list.
+//! * For each scale the *image* is shrunk to `round(size / factor)` with the bit-exact bilinear
+//!   resize and the 20×20 window slides over it: step 2 in x and y below factor 2, step 1 from
+//!   2 on; a window rejected by the very first stage makes the next x position be skipped too.
+//! * Each window is normalised by the standard deviation over its interior `(1, 1, w−2, h−2)`;
+//!   windows that are (nearly) flat — `area / σ·area ≥ 0.1` — are rejected before any stage runs.
+//! * Feature values are computed in `f32` exactly as OpenCV does (`Σ weight · rectsum`, times the
+//!   `f32` inverse norm), stage sums in `f64`, thresholds lowered by 1e-5.
+//! * A hit at `(x, y)` maps back to `(round(x · factor), round(y · factor))` with size
+//!   `round(win · factor)`; the candidates are then merged by [`super::grouping`].
+
+use image::GrayImage;
+use rayon::prelude::*;
+
+use super::cascade::{Cascade, CascadeData, HaarRect};
+use super::grouping::{group_rectangles, IRect, GROUP_EPS};
+use super::integral::Integrals;
+use super::resize::resize_linear_exact;
+use crate::Rect;
+
+/// Search settings, named and defaulted like OpenCV's `detectMultiScale` arguments.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DetectorParams {
+    /// Ratio between consecutive scales (OpenCV's `scaleFactor`); must be > 1. Default 1.1.
+    pub scale_factor: f64,
+    /// A merged box must gather more than this many raw hits (OpenCV's `minNeighbors`).
+    /// 0 returns the raw, ungrouped hits. Default 3.
+    pub min_neighbors: u32,
+    /// Smallest box `(width, height)` to report; `(0, 0)` means the cascade window.
+    pub min_size: (u32, u32),
+    /// Largest box to report; `None` (or a zero dimension, as in OpenCV) means the whole image.
+    pub max_size: Option<(u32, u32)>,
+}
+
+impl Default for DetectorParams {
+    fn default() -> Self {
+        Self {
+            scale_factor: 1.1,
+            min_neighbors: 3,
+            min_size: (0, 0),
+            max_size: None,
+        }
+    }
+}
+
+/// A Viola-Jones face (or object) detector: a [`Cascade`] plus [`DetectorParams`].
+#[derive(Debug, Clone)]
+pub struct FaceDetector {
+    cascade: Cascade,
+    params: DetectorParams,
+}
+
+impl FaceDetector {
+    /// A detector running `cascade` with `params`.
+    pub fn new(cascade: Cascade, params: DetectorParams) -> Self {
+        Self { cascade, params }
+    }
+
+    /// The embedded OpenCV `haarcascade_frontalface_alt2` with default parameters.
+    pub fn frontal_face() -> Self {
+        Self::new(Cascade::frontal_face_alt2(), DetectorParams::default())
+    }
+
+    /// The cascade in use.
+    pub fn cascade(&self) -> &Cascade {
+        &self.cascade
+    }
+
+    /// The search parameters in use.
+    pub fn params(&self) -> &DetectorParams {
+        &self.params
+    }
+
+    /// Detected boxes in input pixels (integer-valued, as OpenCV reports them).
+    ///
+    /// Returns nothing for images smaller than the cascade window or when `scale_factor` is not
+    /// a finite number greater than 1.
+    pub fn detect(&self, gray: &GrayImage) -> Vec<Rect> {
+        self.detect_with_neighbors(gray)
+            .into_iter()
+            .map(|(r, _)| r)
+            .collect()
+    }
+
+    /// Detected boxes with the number of raw hits merged into each (a confidence: more is
+    /// surer). With `min_neighbors == 0` every raw hit is returned with count 1.
+    pub fn detect_with_neighbors(&self, gray: &GrayImage) -> Vec<(Rect, u32)> {
+        let raw = self.raw_candidates(gray);
+        group_rectangles(&raw, self.params.min_neighbors, GROUP_EPS)
+            .into_iter()
+            .map(|(r, n)| {
+                (
+                    Rect::new(
+                        f64::from(r.x),
+                        f64::from(r.y),
+                        f64::from(r.w),
+                        f64::from(r.h),
+                    ),
+                    n,
+                )
+            })
+            .collect()
+    }
+
+    /// Every accepted window before grouping, in a deterministic order (scale, row, column).
+    pub(crate) fn raw_candidates(&self, gray: &GrayImage) -> Vec<IRect> {
+        let data = &*self.cascade.data;
+        let (w, h) = gray.dimensions();
+        let factors = plan_scales((w, h), data.window, &self.params);
+        factors
+            .par_iter()
+            .map(|&f| scan_scale(data, gray, f))
+            .collect::<Vec<_>>()
+            .concat()
+    }
+}
+
+/// OpenCV's scale list (see the module docs).
+pub(crate) fn plan_scales(img: (u32, u32), win: (u32, u32), p: &DetectorParams) -> Vec<f32> {
+    if !(p.scale_factor.is_finite() && p.scale_factor > 1.0) {
+        return Vec::new();
+    }
+    if img.0 < win.0 || img.1 < win.1 {
+        return Vec::new();
+    }
+    let max = match p.max_size {
+        Some((mw, mh)) if mw > 0 && mh > 0 => (mw, mh),
+        _ => img,
+    };
+    let round = |v: f64| v.round_ties_even() as i64;
+    let mut all = Vec::new();
+    let mut factor = 1.0f64;
+    loop {
+        let ws = (
+            round(f64::from(win.0) * factor),
+            round(f64::from(win.1) * factor),
+        );
+        if ws.0 > i64::from(img.0) || ws.1 > i64::from(img.1) {
+            break;
+        }
+        all.push(factor as f32);
+        factor *= p.scale_factor;
+    }
+    let mut out = Vec::new();
+    for f in all {
+        // int * float in C++: the product is a float.
+        let ws = (round_f32(win.0 as f32 * f), round_f32(win.1 as f32 * f));
+        if ws.0 > i64::from(max.0) || ws.1 > i64::from(max.1) {
+            break;
+        }
+        if ws.0 < i64::from(p.min_size.0) || ws.1 < i64::from(p.min_size.1) {
+            continue;
+        }
+        out.push(f);
+    }
+    out
+}
+
+/// `cvRound` of a float: round half to even.
+fn round_f32(v: f32) -> i64 {
+    v.round_ties_even() as i64
+}
+
+/// One Haar feature with its rectangle corners turned into offsets from a window's top-left
+/// entry in the integral buffer of one scale (OpenCV's `HaarEvaluator::OptFeature`).
+#[derive(Debug, Clone, Copy)]
+struct OptFeature {
+    ofs: [[u32; 4]; 3],
+    weight: [f32; 3],
+}
+
+impl OptFeature {
+    fn new(rects: &[HaarRect; 3], tilted: bool, stride: usize, plane: usize) -> Self {
+        let mut ofs = [[0u32; 4]; 3];
+        let mut weight = [0f32; 3];
+        for (k, r) in rects.iter().enumerate() {
+            weight[k] = r.weight;
+            if r.weight == 0.0 {
+                // Unused slot: all four corners at the same place sum to zero.
+                continue;
+            }
+            // Rectangles were validated to lie inside the window, so none of these underflow;
+            // offsets fit in u32 because the integral buffer itself is indexed by them and
+            // images are far below 4 G pixels (checked in `scan_scale`).
+            let at = |x: i32, y: i32| (plane + y as usize * stride + x as usize) as u32;
+            ofs[k] = if tilted {
+                [
+                    at(r.x, r.y),
+                    at(r.x - r.h, r.y + r.h),
+                    at(r.x + r.w, r.y + r.w),
+                    at(r.x + r.w - r.h, r.y + r.w + r.h),
+                ]
+            } else {
+                [
+                    at(r.x, r.y),
+                    at(r.x + r.w, r.y),
+                    at(r.x, r.y + r.h),
+                    at(r.x + r.w, r.y + r.h),
+                ]
+            };
+        }
+        OptFeature { ofs, weight }
+    }
+
+    /// `Σ weight · rectsum` in `f32`, in OpenCV's order of operations.
+    #[inline(always)]
+    fn value(&self, win: &[i32]) -> f32 {
+        let s = |o: &[u32; 4]| rect_sum(win, o) as f32;
+        let mut v = self.weight[0] * s(&self.ofs[0]) + self.weight[1] * s(&self.ofs[1]);
+        if self.weight[2] != 0.0 {
+            v += self.weight[2] * s(&self.ofs[2]);
+        }
+        v
+    }
+}
+
+/// Four-corner sum relative to the window start `win` (wrapping, see `integral`).
+#[inline(always)]
+fn rect_sum(win: &[i32], o: &[u32; 4]) -> i32 {
+    win[o[0] as usize]
+        .wrapping_sub(win[o[1] as usize])
+        .wrapping_sub(win[o[2] as usize])
+        .wrapping_add(win[o[3] as usize])
+}
+
+/// A tree node with its feature inlined, so scoring a node touches one cache line or two.
+#[derive(Debug, Clone, Copy)]
+struct FastNode {
+    feature: OptFeature,
+    threshold: f32,
+    left: i32,
+    right: i32,
+}
+
+/// Everything needed to score windows of one scale.
+struct Evaluator<'a> {
+    data: &'a CascadeData,
+    ii: Integrals,
+    /// `data.nodes` with offsets for this scale's integral buffer.
+    nodes: Vec<FastNode>,
+    /// Leaf values widened once (exact) for the `f64` stage sums.
+    leaves: Vec<f64>,
+    /// Corners of the variance rectangle `(1, 1, w−2, h−2)` in the sum plane.
+    norm: [u32; 4],
+    /// The same in the squared-sum plane.
+    norm_sq: [u32; 4],
+    norm_area: f64,
+    /// Below this `nf` a window is certainly too flat (see `run_at`).
+    flat_limit: f64,
+}
+
+impl<'a> Evaluator<'a> {
+    fn new(data: &'a CascadeData, pixels: &[u8], w: usize, h: usize) -> Self {
+        let ii = Integrals::new(pixels, w, h, data.has_tilted);
+        let stride = ii.stride;
+        let features: Vec<OptFeature> = data
+            .features
+            .iter()
+            .map(|f| {
+                let plane = if f.tilted {
+                    ii.plane_offset(Integrals::TILTED)
+                } else {
+                    ii.plane_offset(Integrals::SUM)
+                };
+                OptFeature::new(&f.rects, f.tilted, stride, plane)
+            })
+            .collect();
+        let nodes = data
+            .nodes
+            .iter()
+            .map(|n| FastNode {
+                // Feature indices were validated when the cascade was parsed.
+                feature: features[n.feature as usize],
+                threshold: n.threshold,
+                left: n.left,
+                right: n.right,
+            })
+            .collect();
+        let (ww, wh) = (data.window.0 as usize, data.window.1 as usize);
+        let norm_at = |plane: usize| {
+            [
+                stride + 1,
+                stride + ww - 1,
+                (wh - 1) * stride + 1,
+                (wh - 1) * stride + ww - 1,
+            ]
+            .map(|o| (plane + o) as u32)
+        };
+        Evaluator {
+            data,
+            nodes,
+            leaves: data.leaves.iter().map(|&v| f64::from(v)).collect(),
+            norm: norm_at(ii.plane_offset(Integrals::SUM)),
+            norm_sq: norm_at(ii.plane_offset(Integrals::SQSUM)),
+            norm_area: ((ww - 2) * (wh - 2)) as f64,
+            flat_limit: (10.0 * ((ww - 2) * (wh - 2)) as f64).powi(2) * (1.0 - 1e-6),
+            ii,
+        }
+    }
+
+    /// OpenCV's `runAt` for the window whose top-left integral entry is `p`: 1 = accepted,
+    /// 0 = rejected by the first stage, −k = rejected by stage k, −1 also for windows too flat
+    /// to normalise.
+    #[inline]
+    fn run_at(&self, p: usize) -> i32 {
+        let win = &self.ii.buf[p..];
+        let valsum = rect_sum(win, &self.norm);
+        let valsqsum = rect_sum(win, &self.norm_sq) as u32;
+        let nf = self.norm_area * f64::from(valsqsum) - f64::from(valsum) * f64::from(valsum);
+        // OpenCV rejects windows with `area · (1/√nf as f32) ≥ 0.1`, i.e. nf ≲ (10·area)². Most
+        // rejected windows are far below that, so settle them without the square root; the
+        // exact test below still decides the borderline ones (the margin dwarfs f32 rounding).
+        // (`nf` is never NaN: it comes from finite integers.)
+        if nf < self.flat_limit {
+            return -1;
+        }
+        let inv = (1.0 / nf.sqrt()) as f32;
+        if self.norm_area * f64::from(inv) >= 1e-1 {
+            return -1;
+        }
+        let d = self.data;
+        for (si, stage) in d.stages.iter().enumerate() {
+            let first = stage.first_tree as usize;
+            let trees = &d.trees[first..first + stage.tree_count as usize];
+            let mut sum = 0f64;
+            for t in trees {
+                let base = t.first_node as usize;
+                let mut idx = 0usize;
+                let leaf = loop {
+                    let n = &self.nodes[base + idx];
+                    let v = n.feature.value(win) * inv;
+                    let next = if v < n.threshold { n.left } else { n.right };
+                    if next <= 0 {
+                        break next.unsigned_abs() as usize;
+                    }
+                    idx = next as usize;
+                };
+                sum += self.leaves[t.first_leaf as usize + leaf];
+            }
+            if sum < f64::from(stage.threshold) {
+                return -(si as i32);
+            }
+        }
+        1
+    }
+}
+
+/// All hits at one scale, in original-image coordinates.
+fn scan_scale(data: &CascadeData, gray: &GrayImage, factor: f32) -> Vec<IRect> {
+    let (iw, ih) = gray.dimensions();
+    let sw = round_f32(iw as f32 / factor).max(0) as usize;
+    let sh = round_f32(ih as f32 / factor).max(0) as usize;
+    let (ww, wh) = (data.window.0 as usize, data.window.1 as usize);
+    // Integral offsets are u32: skip scales whose three planes would not be addressable (over
+    // ~1.4 G pixels; the image reader's size limit stops such inputs long before).
+    if sw < ww || sh < wh || 3 * (sw + 1) * (sh + 1) > u32::MAX as usize {
+        return Vec::new();
+    }
+    let pixels = resize_linear_exact(gray.as_raw(), iw as usize, ih as usize, sw, sh);
+    let ev = Evaluator::new(data, &pixels, sw, sh);
+    // Window positions x in 0..=sw−ww (OpenCV's "working size" is (sw+1) − ww).
+    let (nx, ny) = (sw + 1 - ww, sh + 1 - wh);
+    let step = if factor >= 2.0 { 1 } else { 2 };
+    let win = (
+        round_f32(data.window.0 as f32 * factor) as i32,
+        round_f32(data.window.1 as f32 * factor) as i32,
+    );
+    let rows: Vec<usize> = (0..ny).step_by(step).collect();
+    // Bands of rows keep rayon's task overhead small while still splitting big scales.
+    rows.par_chunks(8)
+        .flat_map_iter(|band| {
+            let mut hits = Vec::new();
+            for &y in band {
+                let row = y * ev.ii.stride;
+                let mut x = 0;
+                while x < nx {
+                    let r = ev.run_at(row + x);
+                    if r > 0 {
+                        hits.push(IRect {
+                            x: round_f32(x as f32 * factor) as i32,
+                            y: round_f32(y as f32 * factor) as i32,
+                            w: win.0,
+                            h: win.1,
+                        });
+                    }
+                    // OpenCV skips the next position after a first-stage rejection.
+                    x += if r == 0 { 2 * step } else { step };
+                }
+            }
+            hits
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::detect::cascade::tests::TINY;
+
+    #[test]
+    fn scale_plan_matches_opencv_rules() {
+        let p = DetectorParams::default();
+        let s = plan_scales((40, 30), (20, 20), &p);
+        // 20·1.1^k ≤ 30 → k ≤ 4 (1.1^4 = 1.4641 → 29.28 → 29).
+        assert_eq!(s.len(), 5);
+        assert_eq!(s[0], 1.0);
+        assert!((s[4] - 1.4641).abs() < 1e-6);
+        assert!(plan_scales((19, 100), (20, 20), &p).is_empty());
+        let min = DetectorParams {
+            min_size: (24, 24),
+            max_size: Some((27, 27)),
+            ..p
+        };
+        // windows 20, 22, 24, 27, 29 → keep 24 and 27 (26.62 rounds to 27).
+        assert_eq!(plan_scales((40, 30), (20, 20), &min).len(), 2);
+        let bad = DetectorParams {
+            scale_factor: 1.0,
+            ..p
+        };
+        assert!(plan_scales((400, 300), (20, 20), &bad).is_empty());
+    }
+
+    /// The tiny cascade fires where the left half of a 4x4 window is much brighter than the
+    /// right half: a single bright-to-dark vertical edge is found at the right place.
+    #[test]
+    fn synthetic_cascade_finds_edge() {
+        let cascade = Cascade::from_xml(TINY).unwrap();
+        let params = DetectorParams {
+            scale_factor: 10.0, // one scale only
+            min_neighbors: 0,
+            ..Default::default()
+        };
+        let det = FaceDetector::new(cascade, params);
+        // 12x12 image: columns 0..6 bright (200), 6..12 dark (20), plus mild texture so no
+        // window is flat.
+        let img = GrayImage::from_fn(12, 12, |x, y| {
+            let base = if x < 6 { 200 } else { 20 };
+            image::Luma([base + ((x * 7 + y * 3) % 5) as u8])
+        });
+        let hits = det.detect(&img);
+        assert!(!hits.is_empty());
+        for r in &hits {
+            // Left half of the window (x..x+2) must be bright, right half (x+2..x+4) dark:
+            // only the window straddling column 6 at x = 4 passes (x steps by 2).
+            assert_eq!(r.x, 4.0, "{r:?}");
+            assert_eq!((r.width, r.height), (4.0, 4.0));
+        }
+        // Rows step by 2 over y = 0..=8.
+        assert_eq!(hits.len(), 5);
+        // Nothing on a flat image: the variance check rejects every window.
+        let flat = GrayImage::from_pixel(12, 12, image::Luma([90]));
+        assert!(det.detect(&flat).is_empty());
+    }
+
+    /// A known detection on a real photo (Yale face database), compared with what OpenCV 4.14's
+    /// `detectMultiScale(gray, 1.1, 3)` reports for the same file: `[108, 54, 145, 145]`.
+    #[test]
+    fn detects_yale_face() {
+        let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../shared/data/yale-faces/images/subject01.normal.jpeg");
+        if !p.exists() {
+            eprintln!("skipped: ../shared not found");
+            return;
+        }
+        let img = image::open(&p).expect("decodable fixture");
+        let faces = FaceDetector::frontal_face()
+            .detect_with_neighbors(&crate::detect::to_gray_opencv(&img));
+        assert_eq!(faces.len(), 1, "{faces:?}");
+        let (r, n) = faces[0];
+        let opencv = Rect::new(108.0, 54.0, 145.0, 145.0);
+        // JPEG decoders differ by a level here and there, so allow a pixel or two.
+        assert!(r.iou(&opencv) > 0.9, "{r:?} vs OpenCV {opencv:?}");
+        assert!(n > 3);
+    }
+
+    #[test]
+    fn tiny_and_odd_images_do_not_panic() {
+        let det = FaceDetector::frontal_face();
+        for (w, h) in [(0, 0), (1, 1), (19, 19), (20, 20), (21, 300), (300, 21)] {
+            let img = GrayImage::new(w, h);
+            assert!(det.detect(&img).is_empty());
+        }
+    }
+}

@@ -1,0 +1,664 @@
+//! Eyes and nostrils located with the correlation filters, in the face normalised to 150 px wide
+//! (paper section IV).
+//!
+//! The face box is resampled once into a [`NormalizedFace`]: the box scaled to
+//! [`FACE_WIDTH`] pixels wide (aspect kept), with a margin around it. Eye crops of the filter size
+//! are cut at the expected eye positions, correlated, and the peak inside a search window is the
+//! eye. The nostrils are found the same way with the left-eye filter in crops below each eye, as
+//! the paper does. Points are then moved to the pair the shear formula compares: each eye centre
+//! towards its inner canthus, each nostril out to the alar side wall, so that on an upright,
+//! unsheared face the two points of a side lie on one vertical line.
+//!
+//! Crops can be cut from a *de-sheared* view of the face (rows shifted by `-k (v - eye row)`),
+//! which lets the estimator re-measure with the shear it already found removed; see
+//! [`FeatureLocator::locate`].
+//!
+//! Every geometric constant below is in normalised-face pixels (face box 150 px wide) and says
+//! how it was chosen.
+
+use image::GrayImage;
+
+use crate::filters::{normalize_patch, Correlator, EyeFilters, Peak};
+use crate::geometry::{Point, Rect};
+
+/// Width of the normalised face, pixels (the paper's 150).
+pub const FACE_WIDTH: f64 = 150.0;
+
+/// Where the subject's right eye sits in a detector box, as fractions of the box width/height.
+/// Median over 2532 Caltech development faces (eye distance >= 20 px) matched to OpenCV
+/// `haarcascade_frontalface_alt2` detections (scale 1.1, 3 neighbours); spread (std) 0.025 / 0.031.
+pub const RIGHT_EYE_IN_BOX: (f64, f64) = (0.3184, 0.397);
+/// Where the subject's left eye sits in a detector box (same measurement; std 0.028 / 0.035).
+pub const LEFT_EYE_IN_BOX: (f64, f64) = (0.698, 0.394);
+/// Eye distance divided by the detector box width (same measurement; median 0.381, std 0.033).
+/// Used to derive a training face box from annotated eyes exactly as the detector would draw it.
+pub const EYE_DISTANCE_PER_BOX_WIDTH: f64 = 0.381;
+
+/// Where each nostril is searched, relative to its eye, in eye distances: inwards (towards the
+/// nose) and downwards. From the dlib 68-point markup (43 faces, points 32 and 34 against the eye
+/// centres of 36-41 and 42-47): the nostrils lie 0.12-0.17 eye distances from the midline (the
+/// eyes 0.5), i.e. 0.35 inwards, and 0.70 below the eye line; the eye filter's response on them
+/// peaks a little lower, 0.74 (median on the Caltech development faces).
+pub const NOSTRIL_FROM_EYE: (f64, f64) = (0.35, 0.74);
+/// Half-size of each nostril's search window, in eye distances: sideways under half the nostril
+/// spacing (0.26-0.3), so a window does not reach the other nostril; vertically the nose length
+/// varies more (pitch, the person).
+pub const NOSTRIL_SEARCH: (f64, f64) = (0.12, 0.18);
+/// Where the nose filter is searched: below the eyes' midpoint by this many eye distances.
+/// Caltech development faces: the annotated nose point lies a median 0.29 box widths below the eye
+/// line, 0.76 eye distances.
+pub const NOSE_BELOW_EYES: f64 = 0.76;
+/// Half-size (eye distances) of the nose search window: sideways it must follow the nose under
+/// shear (`k * 0.76` eye distances: 0.45 covers |k| = 0.6), vertically nose length and pitch.
+pub const NOSE_SEARCH: (f64, f64) = (0.45, 0.15);
+
+/// Half-size of the eye search window (pixels of the normalised face). The detector's eye
+/// positions spread by 3.7-5.3 px (1 std) at 150 px; 14 px is about 3 std.
+pub const EYE_SEARCH: (usize, usize) = (14, 12);
+
+/// Offset from the eye centre towards the inner canthus (between the plica semilunaris and the
+/// canthus, paper Fig. 3), as a fraction of the eye distance. dlib markup: the inner canthus is
+/// 0.31 eye distances from the midline, the eye centre 0.5; the point between canthus and plica is
+/// taken at 0.28, i.e. 0.22 in from the centre.
+pub const EYE_TO_INNER_CANTHUS: f64 = 0.22;
+/// Offset from the detected nostril out to the alar side wall, as a fraction of the eye distance.
+/// dlib markup: the alae (31, 35) are 0.23-0.28 from the midline, the nostrils 0.12-0.17, so 0.10.
+/// On an upright face this puts the nose point under the eye point (both at about 0.26-0.28).
+pub const NOSTRIL_TO_ALAR: f64 = 0.10;
+
+/// Margins (normalised pixels) added around the face box when it is resampled: room for crops
+/// that reach past the box and for de-shearing up to |k| = 1 over the crop rows.
+const MARGIN_X: usize = 80;
+const MARGIN_Y: usize = 40;
+
+/// The face box resampled so that it is [`FACE_WIDTH`] pixels wide, with a margin.
+///
+/// Normalised coordinates `(u, v)` have `(0, 0)` at the box's top-left corner; image coordinates
+/// are `x = box.x + u * scale`, `y = box.y + v * scale`.
+#[derive(Debug, Clone)]
+pub struct NormalizedFace {
+    /// Samples, row-major, `width * height`, covering `u in [-MARGIN_X, width - MARGIN_X)`.
+    pixels: Vec<f32>,
+    width: usize,
+    height: usize,
+    /// Image pixels per normalised pixel.
+    scale: f64,
+    face_box: Rect,
+}
+
+impl NormalizedFace {
+    /// Resamples `face_box` of `gray` to [`FACE_WIDTH`] pixels wide (aspect kept), with a
+    /// triangle (area-weighted when shrinking) filter and edge replication outside the image.
+    pub fn new(gray: &GrayImage, face_box: Rect) -> Self {
+        let scale = face_box.width / FACE_WIDTH;
+        let box_h = (face_box.height / scale).round().max(1.0) as usize;
+        let width = FACE_WIDTH as usize + 2 * MARGIN_X;
+        let height = box_h + 2 * MARGIN_Y;
+        let pixels = resample(
+            gray,
+            face_box.x - MARGIN_X as f64 * scale,
+            face_box.y - MARGIN_Y as f64 * scale,
+            scale,
+            width,
+            height,
+        );
+        Self {
+            pixels,
+            width,
+            height,
+            scale,
+            face_box,
+        }
+    }
+
+    /// Image pixels per normalised pixel.
+    pub fn scale(&self) -> f64 {
+        self.scale
+    }
+
+    /// The face box this was made from.
+    pub fn face_box(&self) -> Rect {
+        self.face_box
+    }
+
+    /// Image coordinates of a normalised point.
+    pub fn to_image(&self, p: Point) -> Point {
+        Point::new(
+            self.face_box.x + p.x * self.scale,
+            self.face_box.y + p.y * self.scale,
+        )
+    }
+
+    /// Normalised coordinates of an image point.
+    pub fn from_image(&self, p: Point) -> Point {
+        Point::new(
+            (p.x - self.face_box.x) / self.scale,
+            (p.y - self.face_box.y) / self.scale,
+        )
+    }
+
+    /// Bilinear sample at normalised `(u, v)`, edge-replicated.
+    fn sample(&self, u: f64, v: f64) -> f32 {
+        let x = (u + MARGIN_X as f64).clamp(0.0, (self.width - 1) as f64);
+        let y = (v + MARGIN_Y as f64).clamp(0.0, (self.height - 1) as f64);
+        let (x0, y0) = (x.floor() as usize, y.floor() as usize);
+        let (x1, y1) = ((x0 + 1).min(self.width - 1), (y0 + 1).min(self.height - 1));
+        let (fx, fy) = ((x - x0 as f64) as f32, (y - y0 as f64) as f32);
+        let row0 = &self.pixels[y0 * self.width..];
+        let row1 = &self.pixels[y1 * self.width..];
+        let top = row0[x0] + (row0[x1] - row0[x0]) * fx;
+        let bottom = row1[x0] + (row1[x1] - row1[x0]) * fx;
+        top + (bottom - top) * fy
+    }
+
+    /// Cuts a `size x size` patch centred on normalised `centre` (the patch's `(size/2, size/2)`
+    /// sample lands on it) from the view de-sheared by `k` about row `pivot_v`: the sample at
+    /// `(u, v)` of that view is taken at `(u + k (v - pivot_v), v)` of the face.
+    pub fn patch(&self, centre: Point, size: usize, k: f64, pivot_v: f64, out: &mut [f32]) {
+        let half = (size / 2) as f64;
+        for (j, row) in out.chunks_exact_mut(size).enumerate() {
+            let v = centre.y - half + j as f64;
+            let u0 = centre.x - half + k * (v - pivot_v);
+            for (i, o) in row.iter_mut().enumerate() {
+                *o = self.sample(u0 + i as f64, v);
+            }
+        }
+    }
+}
+
+/// Separable triangle-filter resampling of a window of `gray`: output pixel `(i, j)` is centred
+/// on image point `(x0 + i * scale, y0 + j * scale)`; the filter radius is `max(scale, 1)`, which
+/// is bilinear when enlarging and an area-weighted average when shrinking (no aliasing).
+/// Hand-written because `image::imageops::resize` only takes integer crops and sizes, and the
+/// face geometry needs sub-pixel placement.
+fn resample(
+    gray: &GrayImage,
+    x0: f64,
+    y0: f64,
+    scale: f64,
+    width: usize,
+    height: usize,
+) -> Vec<f32> {
+    let (iw, ih) = (gray.width() as usize, gray.height() as usize);
+    let xs = taps(x0, scale, width, iw);
+    let ys = taps(y0, scale, height, ih);
+    // Only the image columns some output column reads.
+    let col_lo = xs.iter().map(|t| t.first).min().unwrap_or(0);
+    let col_hi = xs
+        .iter()
+        .map(|t| t.first + t.weights.len())
+        .max()
+        .unwrap_or(0);
+    let span = col_hi.saturating_sub(col_lo);
+    let raw = gray.as_raw();
+    let mut column_pass = vec![0f32; span];
+    let mut out = vec![0f32; width * height];
+    for (j, ty) in ys.iter().enumerate() {
+        column_pass.iter_mut().for_each(|v| *v = 0.0);
+        for (k, &w) in ty.weights.iter().enumerate() {
+            let row = &raw[(ty.first + k) * iw..(ty.first + k + 1) * iw];
+            for (c, v) in column_pass.iter_mut().enumerate() {
+                *v += w * f32::from(row[col_lo + c]);
+            }
+        }
+        let out_row = &mut out[j * width..(j + 1) * width];
+        for (o, tx) in out_row.iter_mut().zip(&xs) {
+            let start = tx.first - col_lo;
+            *o = tx
+                .weights
+                .iter()
+                .zip(&column_pass[start..])
+                .map(|(w, v)| w * v)
+                .sum();
+        }
+    }
+    out
+}
+
+/// The source samples and weights of one output sample (a run of consecutive indices).
+struct Taps {
+    first: usize,
+    weights: Vec<f32>,
+}
+
+/// Triangle-filter taps for `n` output samples at `origin + i * scale` over `len` source samples;
+/// indices outside `[0, len)` are clamped to the edge (edge replication) and their weights merged.
+fn taps(origin: f64, scale: f64, n: usize, len: usize) -> Vec<Taps> {
+    let radius = scale.max(1.0);
+    let last = len.saturating_sub(1) as isize;
+    (0..n)
+        .map(|i| {
+            let c = origin + i as f64 * scale;
+            let lo = (c - radius).ceil() as isize;
+            let hi = (c + radius).floor() as isize;
+            let (first, end) = (lo.clamp(0, last) as usize, hi.clamp(0, last) as usize);
+            let mut weights = vec![0f32; end - first + 1];
+            let mut total = 0.0;
+            for s in lo..=hi {
+                let w = (1.0 - ((s as f64 - c) / radius).abs()).max(0.0);
+                weights[(s.clamp(0, last) as usize) - first] += w as f32;
+                total += w;
+            }
+            if total > 0.0 {
+                weights.iter_mut().for_each(|w| *w /= total as f32);
+            }
+            Taps { first, weights }
+        })
+        .collect()
+}
+
+/// The expected positions of both eyes in the normalised face (from the detector-box medians).
+pub fn expected_eyes(face: &NormalizedFace) -> (Point, Point) {
+    let h = face.face_box.height / face.scale;
+    (
+        Point::new(RIGHT_EYE_IN_BOX.0 * FACE_WIDTH, RIGHT_EYE_IN_BOX.1 * h),
+        Point::new(LEFT_EYE_IN_BOX.0 * FACE_WIDTH, LEFT_EYE_IN_BOX.1 * h),
+    )
+}
+
+/// One located feature: its normalised position (in the de-sheared view it was found in) and
+/// the correlation peak.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Located {
+    /// Position in normalised-face pixels of the view it was found in.
+    pub position: Point,
+    /// The correlation peak (displacement and peak-to-sidelobe ratio).
+    pub peak: Peak,
+}
+
+/// The four feature points of a face, in image pixels, with their confidences.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FacePoints {
+    /// Subject's right eye centre (image left).
+    pub right_eye: Point,
+    /// Subject's left eye centre (image right).
+    pub left_eye: Point,
+    /// Subject's right nostril (image left).
+    pub right_nostril: Point,
+    /// Subject's left nostril (image right).
+    pub left_nostril: Point,
+    /// The eye point moved towards the inner canthus, right side (the eq. 5 point).
+    pub right_eye_point: Point,
+    /// The eye point moved towards the inner canthus, left side.
+    pub left_eye_point: Point,
+    /// The nostril moved out to the alar side wall, right side (the eq. 5 point).
+    pub right_nose_point: Point,
+    /// The nostril moved out to the alar side wall, left side.
+    pub left_nose_point: Point,
+    /// Peak-to-sidelobe ratios: right eye, left eye, right nostril, left nostril.
+    pub psr: [f64; 4],
+}
+
+/// Finds eyes and nostrils with a pair of eye filters. Holds the FFT plans and buffers: make one
+/// per thread and reuse it.
+pub struct FeatureLocator<'f> {
+    filters: &'f EyeFilters,
+    correlator: Correlator,
+    patch: Vec<f32>,
+}
+
+impl std::fmt::Debug for FeatureLocator<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("FeatureLocator")
+            .field("size", &self.filters.size())
+            .finish()
+    }
+}
+
+impl<'f> FeatureLocator<'f> {
+    /// A locator using `filters` (plans its FFTs here).
+    pub fn new(filters: &'f EyeFilters) -> Self {
+        Self::with_correlator(filters, Correlator::new(filters.size()))
+    }
+
+    /// A locator reusing `correlator` (which must be of the filters' size), so that FFT plans are
+    /// made once per thread rather than once per face.
+    pub fn with_correlator(filters: &'f EyeFilters, correlator: Correlator) -> Self {
+        let size = filters.size();
+        debug_assert_eq!(correlator.size(), size);
+        Self {
+            filters,
+            correlator,
+            patch: vec![0.0; size * size],
+        }
+    }
+
+    /// Gives the correlator back, for the next locator.
+    pub fn into_correlator(self) -> Correlator {
+        self.correlator
+    }
+
+    fn find(
+        &mut self,
+        face: &NormalizedFace,
+        centre: Point,
+        k: f64,
+        pivot_v: f64,
+        window: (usize, usize),
+        left_filter: bool,
+    ) -> Located {
+        let size = self.filters.size();
+        face.patch(centre, size, k, pivot_v, &mut self.patch);
+        normalize_patch(&mut self.patch);
+        let filter = if left_filter {
+            &self.filters.left_eye
+        } else {
+            &self.filters.right_eye
+        };
+        let peak = self
+            .correlator
+            .correlate(&self.patch, filter, window.0, window.1);
+        Located {
+            position: Point::new(centre.x + peak.dx, centre.y + peak.dy),
+            peak,
+        }
+    }
+
+    /// Both nostrils, found with the left-eye filter (as the paper) in crops below each eye, in
+    /// the view de-sheared by `k`.
+    fn find_nostrils(
+        &mut self,
+        face: &NormalizedFace,
+        right_eye: Point,
+        left_eye: Point,
+        k: f64,
+        pivot_v: f64,
+    ) -> (Located, Located) {
+        let eye_distance = right_eye.distance(left_eye).max(1.0);
+        let (inward, down) = (
+            NOSTRIL_FROM_EYE.0 * eye_distance,
+            NOSTRIL_FROM_EYE.1 * eye_distance,
+        );
+        let window = (
+            (NOSTRIL_SEARCH.0 * eye_distance).round().max(1.0) as usize,
+            (NOSTRIL_SEARCH.1 * eye_distance).round().max(1.0) as usize,
+        );
+        let below = |eye: Point, dir: f64| Point::new(eye.x + dir * inward, eye.y + down);
+        let right = self.find(face, below(right_eye, 1.0), k, pivot_v, window, true);
+        let left = self.find(face, below(left_eye, -1.0), k, pivot_v, window, true);
+        (right, left)
+    }
+
+    /// A first shear estimate from the nose: the nose filter's peak, searched widely below the
+    /// eyes, against the eyes' midpoint (a vertical line of the upright face joins them).
+    /// Returns the estimate and the nose position found.
+    pub fn nose_shear(
+        &mut self,
+        face: &NormalizedFace,
+        right_eye: Point,
+        left_eye: Point,
+    ) -> (f64, Located) {
+        let ed = right_eye.distance(left_eye).max(1.0);
+        let mid = right_eye.midpoint(left_eye);
+        let centre = Point::new(mid.x, mid.y + NOSE_BELOW_EYES * ed);
+        let window = (
+            (NOSE_SEARCH.0 * ed).round() as usize,
+            (NOSE_SEARCH.1 * ed).round() as usize,
+        );
+        let size = self.filters.size();
+        face.patch(centre, size, 0.0, 0.0, &mut self.patch);
+        normalize_patch(&mut self.patch);
+        let peak = self
+            .correlator
+            .correlate(&self.patch, &self.filters.nose, window.0, window.1);
+        let nose = Point::new(centre.x + peak.dx, centre.y + peak.dy);
+        let k = (nose.x - mid.x) / (nose.y - mid.y).max(1.0);
+        (
+            k,
+            Located {
+                position: nose,
+                peak,
+            },
+        )
+    }
+
+    /// Locates both eyes and both nostrils in `face`, looking at the view de-sheared by `k`
+    /// (pass 0 for the face as it is, or `None` to pick the best of [`SHEAR_HYPOTHESES`] first),
+    /// and returns the points in image pixels.
+    ///
+    /// The eye row is the pivot of the de-shearing, so the eyes stay where the detector box puts
+    /// them and only the nose moves back under them.
+    pub fn locate(&mut self, face: &NormalizedFace, k: Option<f64>) -> FacePoints {
+        let (exp_right, exp_left) = expected_eyes(face);
+        let pivot_v = (exp_right.y + exp_left.y) / 2.0;
+        let k = match k {
+            Some(k) => k,
+            None => {
+                let right = self.find(face, exp_right, 0.0, pivot_v, EYE_SEARCH, false);
+                let left = self.find(face, exp_left, 0.0, pivot_v, EYE_SEARCH, true);
+                self.nose_shear(face, right.position, left.position).0
+            }
+        };
+        let right_eye = self.find(face, exp_right, k, pivot_v, EYE_SEARCH, false);
+        let left_eye = self.find(face, exp_left, k, pivot_v, EYE_SEARCH, true);
+        let eye_distance = right_eye.position.distance(left_eye.position).max(1.0);
+        let (right_nostril, left_nostril) =
+            self.find_nostrils(face, right_eye.position, left_eye.position, k, pivot_v);
+
+        // From the de-sheared view back to the face as it is, then to image pixels.
+        let to_image = |p: Point| face.to_image(Point::new(p.x + k * (p.y - pivot_v), p.y));
+        let eye_shift = EYE_TO_INNER_CANTHUS * eye_distance;
+        let alar_shift = NOSTRIL_TO_ALAR * eye_distance;
+        let moved = |p: Point, dx: f64| to_image(Point::new(p.x + dx, p.y));
+        FacePoints {
+            right_eye: to_image(right_eye.position),
+            left_eye: to_image(left_eye.position),
+            right_nostril: to_image(right_nostril.position),
+            left_nostril: to_image(left_nostril.position),
+            right_eye_point: moved(right_eye.position, eye_shift),
+            left_eye_point: moved(left_eye.position, -eye_shift),
+            right_nose_point: moved(right_nostril.position, -alar_shift),
+            left_nose_point: moved(left_nostril.position, alar_shift),
+            psr: [
+                right_eye.peak.psr,
+                left_eye.peak.psr,
+                right_nostril.peak.psr,
+                left_nostril.peak.psr,
+            ],
+        }
+    }
+}
+
+/// Rows of the face used by [`symmetry_shear`], in eye distances from the eye line: from just
+/// above the eyes to below the mouth (Caltech medians: nose 0.74, mouth 1.09 eye distances
+/// below the eyes).
+pub const SYMMETRY_ROWS: (f64, f64) = (-0.2, 1.3);
+/// Half-width (eye distances) of the strip compared with its mirror image: the inner eye
+/// corners, the nose and the mouth, not the cheeks' outline, which yaw and the background change.
+pub const SYMMETRY_HALF_WIDTH: f64 = 0.55;
+/// Rows per band whose symmetry axis is found on its own.
+const SYMMETRY_BAND_ROWS: usize = 6;
+/// How far (eye distances) a band's axis may lie from the eyes' midpoint.
+const SYMMETRY_AXIS_REACH: f64 = 0.6;
+
+/// The shear of a face from the tilt of its mirror-symmetry axis.
+///
+/// A face is close to mirror-symmetric about a vertical line; a horizontal shear turns that line
+/// into one of slope `k` (pixels sideways per row). The face is cut into horizontal bands, each
+/// band's axis is the column about which it best matches its own mirror image (normalised
+/// cross-correlation), and a line `x = x0 + k v` is fitted through the band axes by weighted
+/// least squares. Returns `(k, mean band score)`, or `None` when fewer than three bands show
+/// any symmetry. This needs no feature detector, so it tolerates any shear; the feature
+/// points then refine it (see [`FeatureLocator::locate`]).
+pub fn symmetry_shear(
+    face: &NormalizedFace,
+    right_eye: Point,
+    left_eye: Point,
+) -> Option<(f64, f64)> {
+    let ed = right_eye.distance(left_eye).max(1.0);
+    let mid = right_eye.midpoint(left_eye);
+    let half = (SYMMETRY_HALF_WIDTH * ed).round().max(2.0) as isize;
+    let reach = (SYMMETRY_AXIS_REACH * ed).round() as isize;
+    let v_from = (mid.y + SYMMETRY_ROWS.0 * ed).round() as isize;
+    let v_to = (mid.y + SYMMETRY_ROWS.1 * ed).round() as isize;
+    let mx = mid.x.round() as isize;
+    let (w, h) = (face.width as isize, face.height as isize);
+    let at = |u: isize, v: isize| -> f64 {
+        let x = (u + MARGIN_X as isize).clamp(0, w - 1);
+        let y = (v + MARGIN_Y as isize).clamp(0, h - 1);
+        f64::from(face.pixels[(y * w + x) as usize])
+    };
+    let mut fits = Vec::new();
+    let mut band = v_from;
+    while band + SYMMETRY_BAND_ROWS as isize <= v_to {
+        let rows = band..band + SYMMETRY_BAND_ROWS as isize;
+        let score = |c: isize| -> f64 {
+            let (mut sa, mut sb, mut saa, mut sbb, mut sab, mut n) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+            for v in rows.clone() {
+                for d in 1..=half {
+                    let (a, b) = (at(c - d, v), at(c + d, v));
+                    sa += a;
+                    sb += b;
+                    saa += a * a;
+                    sbb += b * b;
+                    sab += a * b;
+                    n += 1.0;
+                }
+            }
+            let cov = sab - sa * sb / n;
+            let var = (saa - sa * sa / n) * (sbb - sb * sb / n);
+            if var > 1e-9 {
+                cov / var.sqrt()
+            } else {
+                0.0
+            }
+        };
+        let scores: Vec<f64> = (-reach..=reach).map(|o| score(mx + o)).collect();
+        if let Some((i, &best)) = scores.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1)) {
+            let sub = if i > 0 && i + 1 < scores.len() {
+                parabola(scores[i - 1], best, scores[i + 1])
+            } else {
+                0.0
+            };
+            let centre = (mx - reach + i as isize) as f64 + sub;
+            let v_mid = band as f64 + (SYMMETRY_BAND_ROWS as f64 - 1.0) / 2.0;
+            if best > 0.0 {
+                fits.push((v_mid - mid.y, centre, best));
+            }
+        }
+        band += SYMMETRY_BAND_ROWS as isize;
+    }
+    if fits.len() < 3 {
+        return None;
+    }
+    // Weighted least squares x = x0 + k v, weights = band score squared.
+    let (mut sw, mut sv, mut sx, mut svv, mut svx) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for &(v, x, s) in &fits {
+        let wgt = s * s;
+        sw += wgt;
+        sv += wgt * v;
+        sx += wgt * x;
+        svv += wgt * v * v;
+        svx += wgt * v * x;
+    }
+    let denom = sw * svv - sv * sv;
+    if denom.abs() < 1e-9 {
+        return None;
+    }
+    let k = (sw * svx - sv * sx) / denom;
+    let mean_score = fits.iter().map(|f| f.2).sum::<f64>() / fits.len() as f64;
+    Some((k, mean_score))
+}
+
+/// Vertex offset of the parabola through three equally spaced samples.
+fn parabola(l: f64, c: f64, r: f64) -> f64 {
+    let d = l - 2.0 * c + r;
+    if d >= -1e-12 {
+        0.0
+    } else {
+        (0.5 * (l - r) / d).clamp(-0.5, 0.5)
+    }
+}
+
+/// The detector-style face box for a face whose eye centres are known (used for training, so
+/// training crops are cut from the same normalised face the detector's box gives at run time).
+pub fn face_box_from_eyes(right_eye: Point, left_eye: Point) -> Rect {
+    let width = right_eye.distance(left_eye) / EYE_DISTANCE_PER_BOX_WIDTH;
+    let mid = right_eye.midpoint(left_eye);
+    let mid_in_box = (
+        (RIGHT_EYE_IN_BOX.0 + LEFT_EYE_IN_BOX.0) / 2.0,
+        (RIGHT_EYE_IN_BOX.1 + LEFT_EYE_IN_BOX.1) / 2.0,
+    );
+    Rect::new(
+        mid.x - mid_in_box.0 * width,
+        mid.y - mid_in_box.1 * width,
+        width,
+        width,
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ramp(w: u32, h: u32) -> GrayImage {
+        GrayImage::from_fn(w, h, |x, y| image::Luma([((x * 2 + y) % 256) as u8]))
+    }
+
+    #[test]
+    fn resample_at_unit_scale_reproduces_pixels() {
+        let img = ramp(40, 30);
+        let out = resample(&img, 5.0, 7.0, 1.0, 10, 8);
+        for j in 0..8 {
+            for i in 0..10 {
+                let expected = f32::from(img.get_pixel(5 + i as u32, 7 + j as u32)[0]);
+                assert!((out[j * 10 + i] - expected).abs() < 1e-4);
+            }
+        }
+    }
+
+    #[test]
+    fn resample_shrinking_averages_and_preserves_mean() {
+        // A fine checkerboard shrunk 4x must come out flat grey, not aliased.
+        let img = GrayImage::from_fn(64, 64, |x, y| {
+            image::Luma([if (x + y) % 2 == 0 { 0 } else { 200 }])
+        });
+        let out = resample(&img, 8.0, 8.0, 4.0, 10, 10);
+        for v in out {
+            assert!((v - 100.0).abs() < 8.0, "{v}");
+        }
+    }
+
+    #[test]
+    fn face_box_from_eyes_puts_eyes_where_the_detector_does() {
+        let (r, l) = (Point::new(100.0, 80.0), Point::new(157.0, 80.0));
+        let b = face_box_from_eyes(r, l);
+        assert!((b.width - 57.0 / EYE_DISTANCE_PER_BOX_WIDTH).abs() < 1e-9);
+        let mid_x = (r.x - b.x) / b.width + (l.x - b.x) / b.width;
+        assert!((mid_x / 2.0 - (RIGHT_EYE_IN_BOX.0 + LEFT_EYE_IN_BOX.0) / 2.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn image_and_normalised_coordinates_round_trip() {
+        let img = ramp(300, 300);
+        let face = NormalizedFace::new(&img, Rect::new(20.0, 30.0, 225.0, 225.0));
+        assert!((face.scale() - 1.5).abs() < 1e-12);
+        let p = Point::new(123.4, 56.7);
+        let q = face.to_image(face.from_image(p));
+        assert!(p.distance(q) < 1e-9);
+    }
+
+    #[test]
+    fn deshear_patch_shifts_rows() {
+        // A vertical bright line at x = 100; in a view sheared by k, row v shows it at
+        // 100 - k (v - pivot).
+        let img = GrayImage::from_fn(300, 300, |x, _| {
+            image::Luma([if x == 100 { 255 } else { 0 }])
+        });
+        let face = NormalizedFace::new(&img, Rect::new(0.0, 0.0, 150.0, 150.0));
+        let mut patch = vec![0f32; 16 * 16];
+        let k = 0.25;
+        face.patch(Point::new(100.0, 50.0), 16, k, 42.0, &mut patch);
+        // Row j = 0 is v = 42, the pivot: the line at patch column 8.
+        let argmax = |row: &[f32]| {
+            row.iter()
+                .enumerate()
+                .max_by(|a, b| a.1.total_cmp(b.1))
+                .map(|(i, _)| i)
+                .unwrap_or(0)
+        };
+        assert_eq!(argmax(&patch[0..16]), 8);
+        // Row j = 8 is v = 50: the line appears at 100 - 0.25 * 8 = 98, patch column 6.
+        assert_eq!(argmax(&patch[8 * 16..9 * 16]), 6);
+    }
+}

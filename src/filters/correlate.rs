@@ -1,0 +1,323 @@
+//! Frequency-domain correlation of a square patch with a [`Filter`], with the FFT plans built
+//! once and the work buffers reused across calls (rustfft style: plan once, no allocation per call).
+
+use std::sync::Arc;
+
+use rustfft::num_complex::Complex32;
+use rustfft::{Fft, FftPlanner};
+
+use super::Filter;
+
+/// Side of the square excluded around the peak when measuring the sidelobe for the PSR
+/// (11 x 11, the usual choice for 64 x 64 correlation planes, e.g. Bolme et al. 2009).
+const PSR_EXCLUSION: isize = 5;
+
+/// A correlation peak.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Peak {
+    /// Displacement of the feature from the patch centre, in pixels, sub-pixel (parabola fit).
+    pub dx: f64,
+    /// Vertical displacement from the patch centre.
+    pub dy: f64,
+    /// Correlation value at the integer peak.
+    pub value: f32,
+    /// Peak-to-sidelobe ratio: (peak - mean of the sidelobe) / std of the sidelobe, where the
+    /// sidelobe is the whole plane less an 11 x 11 square around the peak. Higher is surer.
+    pub psr: f64,
+}
+
+/// Correlates `size x size` patches with filters of the same size.
+///
+/// Holds the forward and inverse FFT plans and the work buffers, so one `Correlator` per thread
+/// serves any number of calls without allocating.
+pub struct Correlator {
+    size: usize,
+    forward: Arc<dyn Fft<f32>>,
+    inverse: Arc<dyn Fft<f32>>,
+    buffer: Vec<Complex32>,
+    transposed: Vec<Complex32>,
+    scratch: Vec<Complex32>,
+    plane: Vec<f32>,
+}
+
+impl std::fmt::Debug for Correlator {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Correlator")
+            .field("size", &self.size)
+            .finish()
+    }
+}
+
+impl Correlator {
+    /// A correlator for `size x size` patches (plans built here, once).
+    pub fn new(size: usize) -> Self {
+        let mut planner = FftPlanner::<f32>::new();
+        let forward = planner.plan_fft_forward(size);
+        let inverse = planner.plan_fft_inverse(size);
+        let scratch_len = forward
+            .get_inplace_scratch_len()
+            .max(inverse.get_inplace_scratch_len());
+        Self {
+            size,
+            forward,
+            inverse,
+            buffer: vec![Complex32::default(); size * size],
+            transposed: vec![Complex32::default(); size * size],
+            scratch: vec![Complex32::default(); scratch_len],
+            plane: vec![0.0; size * size],
+        }
+    }
+
+    /// Side length this correlator works on.
+    pub fn size(&self) -> usize {
+        self.size
+    }
+
+    /// The 2-D DFT of a real `size x size` patch, row-major.
+    pub fn spectrum(&mut self, patch: &[f32]) -> Vec<Complex32> {
+        self.load_real(patch);
+        self.fft2(true);
+        self.buffer.clone()
+    }
+
+    /// The 2-D DFT of a real patch written into `out` (no allocation).
+    pub fn spectrum_into(&mut self, patch: &[f32], out: &mut [Complex32]) {
+        self.load_real(patch);
+        self.fft2(true);
+        out.copy_from_slice(&self.buffer);
+    }
+
+    /// The real part of the inverse 2-D DFT of `spectrum`, scaled by 1 / size^2.
+    pub fn inverse_real(&mut self, spectrum: &[Complex32]) -> Vec<f32> {
+        self.buffer.copy_from_slice(spectrum);
+        self.fft2(false);
+        let norm = 1.0 / (self.size * self.size) as f32;
+        self.buffer.iter().map(|c| c.re * norm).collect()
+    }
+
+    /// Correlates `patch` (real, `size x size`, row-major) with `filter` and returns the highest
+    /// peak whose displacement from the centre lies within `max_dx`, `max_dy` pixels.
+    ///
+    /// Restricting the peak to a search window keeps the other eye, the brows or the mouth, which
+    /// also correlate, from winning when they fall inside the patch.
+    pub fn correlate(
+        &mut self,
+        patch: &[f32],
+        filter: &Filter,
+        max_dx: usize,
+        max_dy: usize,
+    ) -> Peak {
+        self.compute_plane(patch, filter);
+        self.peak_in_window(max_dx, max_dy)
+    }
+
+    /// Correlates `patch` with `filter` and keeps the correlation plane for [`Self::value`],
+    /// [`Self::peak_in_window`] and [`Self::peak_at`].
+    pub fn compute_plane(&mut self, patch: &[f32], filter: &Filter) {
+        debug_assert_eq!(filter.size, self.size);
+        self.load_real(patch);
+        self.fft2(true);
+        for (x, h) in self.buffer.iter_mut().zip(&filter.spectrum) {
+            *x *= h.conj();
+        }
+        self.fft2(false);
+        let norm = 1.0 / (self.size * self.size) as f32;
+        for (p, c) in self.plane.iter_mut().zip(&self.buffer) {
+            *p = c.re * norm;
+        }
+    }
+
+    /// The highest value of the last plane within `max_dx`, `max_dy` of the centre, refined.
+    pub fn peak_in_window(&self, max_dx: usize, max_dy: usize) -> Peak {
+        let half = (self.size / 2) as isize;
+        let max_dx = (max_dx as isize).min(half - 1);
+        let max_dy = (max_dy as isize).min(half - 1);
+        let (mut best, mut best_dx, mut best_dy) = (f32::NEG_INFINITY, 0isize, 0isize);
+        for dy in -max_dy..=max_dy {
+            for dx in -max_dx..=max_dx {
+                let v = self.value(dx, dy);
+                if v > best {
+                    (best, best_dx, best_dy) = (v, dx, dy);
+                }
+            }
+        }
+        self.peak_at(best_dx, best_dy)
+    }
+
+    /// The last plane's peak at integer displacement `(dx, dy)`, refined to sub-pixel precision
+    /// by a parabola through the neighbours, with its peak-to-sidelobe ratio.
+    pub fn peak_at(&self, dx: isize, dy: isize) -> Peak {
+        let v = self.value(dx, dy);
+        let sub_x = parabola_offset(self.value(dx - 1, dy), v, self.value(dx + 1, dy));
+        let sub_y = parabola_offset(self.value(dx, dy - 1), v, self.value(dx, dy + 1));
+        Peak {
+            dx: dx as f64 + sub_x,
+            dy: dy as f64 + sub_y,
+            value: v,
+            psr: self.psr(v, dx, dy),
+        }
+    }
+
+    /// The last plane's value at displacement `(dx, dy)` from the centre, indices modulo the size.
+    pub fn value(&self, dx: isize, dy: isize) -> f32 {
+        let n = self.size as isize;
+        let x = dx.rem_euclid(n) as usize;
+        let y = dy.rem_euclid(n) as usize;
+        self.plane[y * self.size + x]
+    }
+
+    fn psr(&self, peak: f32, pdx: isize, pdy: isize) -> f64 {
+        let n = self.size as isize;
+        let (mut sum, mut sum_sq, mut count) = (0f64, 0f64, 0usize);
+        for y in 0..n {
+            for x in 0..n {
+                // Circular distance to the peak, so the exclusion square wraps like the plane does.
+                let ddx = (x - pdx).rem_euclid(n);
+                let ddy = (y - pdy).rem_euclid(n);
+                let near_x = ddx <= PSR_EXCLUSION || ddx >= n - PSR_EXCLUSION;
+                let near_y = ddy <= PSR_EXCLUSION || ddy >= n - PSR_EXCLUSION;
+                if near_x && near_y {
+                    continue;
+                }
+                let v = f64::from(self.plane[(y * n + x) as usize]);
+                sum += v;
+                sum_sq += v * v;
+                count += 1;
+            }
+        }
+        if count < 2 {
+            return 0.0;
+        }
+        let mean = sum / count as f64;
+        let var = (sum_sq / count as f64 - mean * mean).max(0.0);
+        if var <= f64::EPSILON {
+            return 0.0;
+        }
+        (f64::from(peak) - mean) / var.sqrt()
+    }
+
+    fn load_real(&mut self, patch: &[f32]) {
+        assert_eq!(
+            patch.len(),
+            self.size * self.size,
+            "patch must be size x size"
+        );
+        for (b, &p) in self.buffer.iter_mut().zip(patch) {
+            *b = Complex32::new(p, 0.0);
+        }
+    }
+
+    /// In-place 2-D FFT of `self.buffer`: rows, transpose, rows, transpose back.
+    fn fft2(&mut self, forward: bool) {
+        let fft = if forward {
+            &self.forward
+        } else {
+            &self.inverse
+        };
+        fft.process_with_scratch(&mut self.buffer, &mut self.scratch);
+        transpose(&self.buffer, &mut self.transposed, self.size);
+        fft.process_with_scratch(&mut self.transposed, &mut self.scratch);
+        transpose(&self.transposed, &mut self.buffer, self.size);
+    }
+}
+
+fn transpose(src: &[Complex32], dst: &mut [Complex32], n: usize) {
+    for y in 0..n {
+        for x in 0..n {
+            dst[x * n + y] = src[y * n + x];
+        }
+    }
+}
+
+/// Vertex of the parabola through three equally spaced samples, relative to the middle one,
+/// clamped to half a pixel (a flat or noisy top gives no reliable sub-pixel information beyond).
+fn parabola_offset(left: f32, centre: f32, right: f32) -> f64 {
+    let denom = f64::from(left) - 2.0 * f64::from(centre) + f64::from(right);
+    if denom >= -1e-12 {
+        return 0.0;
+    }
+    (0.5 * (f64::from(left) - f64::from(right)) / denom).clamp(-0.5, 0.5)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn blob(n: usize, cx: f64, cy: f64, sigma: f64) -> Vec<f32> {
+        let mut v = vec![0f32; n * n];
+        for y in 0..n {
+            for x in 0..n {
+                let d2 = (x as f64 - cx).powi(2) + (y as f64 - cy).powi(2);
+                v[y * n + x] = (-d2 / (2.0 * sigma * sigma)).exp() as f32;
+            }
+        }
+        v
+    }
+
+    #[test]
+    fn spectrum_round_trips() {
+        let mut c = Correlator::new(16);
+        let p = blob(16, 5.0, 9.0, 2.0);
+        let spectrum = c.spectrum(&p);
+        let back = c.inverse_real(&spectrum);
+        for (a, b) in p.iter().zip(&back) {
+            assert!((a - b).abs() < 1e-5);
+        }
+    }
+
+    #[test]
+    fn matched_filter_peaks_at_the_displacement() {
+        let n = 32;
+        let mut c = Correlator::new(n);
+        let template = blob(n, 16.0, 16.0, 2.5);
+        let filter = Filter {
+            size: n,
+            spectrum: c.spectrum(&template),
+            training_count: 1,
+        };
+        let shifted = blob(n, 19.0, 13.0, 2.5);
+        let peak = c.correlate(&shifted, &filter, 10, 10);
+        assert!((peak.dx - 3.0).abs() < 0.05, "dx {}", peak.dx);
+        assert!((peak.dy + 3.0).abs() < 0.05, "dy {}", peak.dy);
+        assert!(peak.psr > 3.0, "psr {}", peak.psr);
+    }
+
+    #[test]
+    fn sub_pixel_displacement_is_recovered() {
+        let n = 32;
+        let mut c = Correlator::new(n);
+        let filter = Filter {
+            size: n,
+            spectrum: c.spectrum(&blob(n, 16.0, 16.0, 3.0)),
+            training_count: 1,
+        };
+        let peak = c.correlate(&blob(n, 17.3, 15.6, 3.0), &filter, 8, 8);
+        assert!((peak.dx - 1.3).abs() < 0.15, "dx {}", peak.dx);
+        assert!((peak.dy + 0.4).abs() < 0.15, "dy {}", peak.dy);
+    }
+
+    #[test]
+    fn search_window_excludes_a_stronger_far_peak() {
+        let n = 32;
+        let mut c = Correlator::new(n);
+        let filter = Filter {
+            size: n,
+            spectrum: c.spectrum(&blob(n, 16.0, 16.0, 2.0)),
+            training_count: 1,
+        };
+        let mut patch = blob(n, 18.0, 16.0, 2.0);
+        for (p, q) in patch.iter_mut().zip(blob(n, 28.0, 16.0, 2.0)) {
+            *p = 0.5 * *p + q;
+        }
+        assert!((c.correlate(&patch, &filter, 15, 15).dx - 12.0).abs() < 0.2);
+        assert!((c.correlate(&patch, &filter, 4, 4).dx - 2.0).abs() < 0.3);
+    }
+
+    #[test]
+    fn parabola_vertex() {
+        // Samples of -(x - 0.25)^2 at -1, 0, 1.
+        let f = |x: f32| -(x - 0.25) * (x - 0.25);
+        assert!((parabola_offset(f(-1.0), f(0.0), f(1.0)) - 0.25).abs() < 1e-6);
+        assert_eq!(parabola_offset(1.0, 1.0, 1.0), 0.0);
+    }
+}

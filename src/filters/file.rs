@@ -1,0 +1,306 @@
+//! The eye-filter file: a small versioned binary format, loaded with validation.
+//!
+//! Layout (all integers and floats little-endian):
+//!
+//! | bytes | field |
+//! |---|---|
+//! | 8 | magic `UNSHEARF` |
+//! | 4 | format version, `1` |
+//! | 4 | filter kind, `1` = UMACE |
+//! | 4 | side `n` of each square filter (8 to 256) |
+//! | 4 | face width the filters were trained at, pixels (150) |
+//! | 4 | number of filters, `3`: the subject's right eye, the left eye, the nose |
+//! | per filter: 4 + 8 n^2 | training-patch count, then `n * n` complex spectrum values as (re, im) `f32` pairs, row-major |
+//! | 8 | FNV-1a 64-bit hash of every byte before it |
+//!
+//! Writing the same filters gives the same bytes, so a retrained file can be compared with the
+//! committed one byte for byte.
+
+use std::path::Path;
+
+use rustfft::num_complex::Complex32;
+
+use super::Filter;
+use crate::error::{Error, Result};
+
+const MAGIC: &[u8; 8] = b"UNSHEARF";
+/// The file-format version this build reads and writes.
+pub const FORMAT_VERSION: u32 = 1;
+/// Filter kind code for UMACE.
+const KIND_UMACE: u32 = 1;
+const MIN_SIZE: usize = 8;
+/// Filters in a file: right eye, left eye, nose.
+const FILTER_COUNT: u32 = 3;
+const MAX_SIZE: usize = 256;
+
+/// The built-in eye filters (trained with `unshear train`, see `models/README.md`).
+static EMBEDDED: &[u8] = include_bytes!("../../models/eye_filters.bin");
+
+/// The filter set: one filter for each eye, as the paper, and one for the nose.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EyeFilters {
+    /// Filter for the subject's right eye (on the image's left).
+    pub right_eye: Filter,
+    /// Filter for the subject's left eye (on the image's right); also used for the nostrils.
+    pub left_eye: Filter,
+    /// Filter for the whole lower nose (tip and both nostrils), centred on the annotated nose
+    /// point: used to find where the nose is before the nostrils are searched for.
+    pub nose: Filter,
+    /// Width of the normalised face the filters were trained at, in pixels.
+    pub face_width: u32,
+}
+
+impl EyeFilters {
+    /// The filters built into the binary.
+    pub fn embedded() -> Result<Self> {
+        Self::from_bytes(EMBEDDED)
+    }
+
+    /// Side length of the filters.
+    pub fn size(&self) -> usize {
+        self.right_eye.size
+    }
+
+    /// Reads and validates a filter file.
+    pub fn from_file(path: &Path) -> Result<Self> {
+        let bytes = std::fs::read(path).map_err(|source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::from_bytes(&bytes)
+    }
+
+    /// Parses and validates filter-file bytes.
+    pub fn from_bytes(bytes: &[u8]) -> Result<Self> {
+        let bad = |m: &str| Error::FilterFile(m.to_string());
+        if bytes.len() < 8 + 5 * 4 + 8 {
+            return Err(bad("file too short for the header"));
+        }
+        if &bytes[..8] != MAGIC {
+            return Err(bad("not an unshear filter file (bad magic)"));
+        }
+        let (body, tail) = bytes.split_at(bytes.len() - 8);
+        let stored_hash =
+            u64::from_le_bytes(tail.try_into().map_err(|_| bad("truncated checksum"))?);
+        if fnv1a(body) != stored_hash {
+            return Err(bad("checksum mismatch (file corrupt or truncated)"));
+        }
+        let mut r = Reader {
+            bytes: body,
+            pos: 8,
+        };
+        let version = r.u32()?;
+        if version != FORMAT_VERSION {
+            return Err(Error::FilterFile(format!(
+                "format version {version} not supported (this build reads {FORMAT_VERSION})"
+            )));
+        }
+        let kind = r.u32()?;
+        if kind != KIND_UMACE {
+            return Err(Error::FilterFile(format!("unknown filter kind {kind}")));
+        }
+        let size = r.u32()? as usize;
+        if !(MIN_SIZE..=MAX_SIZE).contains(&size) {
+            return Err(Error::FilterFile(format!(
+                "filter size {size} outside {MIN_SIZE}..={MAX_SIZE}"
+            )));
+        }
+        let face_width = r.u32()?;
+        if !(16..=4096).contains(&face_width) {
+            return Err(Error::FilterFile(format!(
+                "implausible face width {face_width}"
+            )));
+        }
+        let count = r.u32()?;
+        if count != FILTER_COUNT {
+            return Err(Error::FilterFile(format!(
+                "expected {FILTER_COUNT} filters, found {count}"
+            )));
+        }
+        let expected = 8 + 5 * 4 + FILTER_COUNT as usize * (4 + 8 * size * size);
+        if body.len() != expected {
+            return Err(Error::FilterFile(format!(
+                "length {} does not match the header (expected {expected})",
+                body.len()
+            )));
+        }
+        let right_eye = r.filter(size)?;
+        let left_eye = r.filter(size)?;
+        let nose = r.filter(size)?;
+        Ok(Self {
+            right_eye,
+            left_eye,
+            nose,
+            face_width,
+        })
+    }
+
+    /// Serialises to the file format (deterministic).
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let size = self.size();
+        let mut out =
+            Vec::with_capacity(8 + 5 * 4 + FILTER_COUNT as usize * (4 + 8 * size * size) + 8);
+        out.extend_from_slice(MAGIC);
+        for v in [
+            FORMAT_VERSION,
+            KIND_UMACE,
+            size as u32,
+            self.face_width,
+            FILTER_COUNT,
+        ] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        for f in [&self.right_eye, &self.left_eye, &self.nose] {
+            out.extend_from_slice(&f.training_count.to_le_bytes());
+            for c in &f.spectrum {
+                out.extend_from_slice(&c.re.to_le_bytes());
+                out.extend_from_slice(&c.im.to_le_bytes());
+            }
+        }
+        let hash = fnv1a(&out);
+        out.extend_from_slice(&hash.to_le_bytes());
+        out
+    }
+}
+
+struct Reader<'a> {
+    bytes: &'a [u8],
+    pos: usize,
+}
+
+impl Reader<'_> {
+    fn take<const N: usize>(&mut self) -> Result<[u8; N]> {
+        let end = self.pos + N;
+        let slice = self
+            .bytes
+            .get(self.pos..end)
+            .ok_or_else(|| Error::FilterFile("unexpected end of file".into()))?;
+        self.pos = end;
+        slice
+            .try_into()
+            .map_err(|_| Error::FilterFile("unexpected end of file".into()))
+    }
+
+    fn u32(&mut self) -> Result<u32> {
+        Ok(u32::from_le_bytes(self.take::<4>()?))
+    }
+
+    fn f32(&mut self) -> Result<f32> {
+        let v = f32::from_le_bytes(self.take::<4>()?);
+        if v.is_finite() {
+            Ok(v)
+        } else {
+            Err(Error::FilterFile("non-finite filter coefficient".into()))
+        }
+    }
+
+    fn filter(&mut self, size: usize) -> Result<Filter> {
+        let training_count = self.u32()?;
+        let mut spectrum = Vec::with_capacity(size * size);
+        for _ in 0..size * size {
+            let re = self.f32()?;
+            let im = self.f32()?;
+            spectrum.push(Complex32::new(re, im));
+        }
+        Ok(Filter {
+            size,
+            spectrum,
+            training_count,
+        })
+    }
+}
+
+/// FNV-1a, 64-bit: a few lines, enough to catch truncation and bit rot in a 64 KiB file
+/// (not a defence against deliberate tampering, which the format does not claim).
+fn fnv1a(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample(size: usize) -> EyeFilters {
+        let f = |seed: f32| Filter {
+            size,
+            spectrum: (0..size * size)
+                .map(|i| Complex32::new(i as f32 * 0.5 + seed, -(i as f32) + seed))
+                .collect(),
+            training_count: 7,
+        };
+        EyeFilters {
+            right_eye: f(1.0),
+            left_eye: f(2.0),
+            nose: f(3.0),
+            face_width: 150,
+        }
+    }
+
+    #[test]
+    fn round_trip() {
+        let filters = sample(8);
+        let bytes = filters.to_bytes();
+        assert_eq!(EyeFilters::from_bytes(&bytes).expect("valid"), filters);
+        assert_eq!(
+            bytes,
+            EyeFilters::from_bytes(&bytes).expect("valid").to_bytes()
+        );
+    }
+
+    #[test]
+    fn embedded_filters_load() {
+        let f = EyeFilters::embedded().expect("embedded filters valid");
+        assert_eq!(f.size(), 64);
+        assert_eq!(f.face_width, 150);
+        assert!(f.right_eye.training_count >= 1500 && f.left_eye.training_count >= 1500);
+        assert_eq!(f.nose.training_count, f.left_eye.training_count);
+    }
+
+    #[test]
+    fn corrupt_files_are_rejected() {
+        let good = sample(8).to_bytes();
+        assert!(EyeFilters::from_bytes(&[]).is_err());
+        assert!(EyeFilters::from_bytes(&good[..good.len() - 1]).is_err());
+        let mut flipped = good.clone();
+        flipped[40] ^= 1;
+        assert!(
+            matches!(EyeFilters::from_bytes(&flipped), Err(Error::FilterFile(m)) if m.contains("checksum"))
+        );
+        let mut magic = good.clone();
+        magic[0] = b'X';
+        assert!(EyeFilters::from_bytes(&magic).is_err());
+    }
+
+    /// A file with a valid checksum but a lying header is still rejected.
+    #[test]
+    fn inconsistent_header_is_rejected() {
+        let reseal = |mut body: Vec<u8>| {
+            body.truncate(body.len() - 8);
+            let h = fnv1a(&body);
+            body.extend_from_slice(&h.to_le_bytes());
+            body
+        };
+        let good = sample(8).to_bytes();
+        for (offset, value) in [
+            (8, 2u32),
+            (12, 9),
+            (16, 4096),
+            (16, 16),
+            (24, 2),
+            (24, 4),
+            (20, 1),
+        ] {
+            let mut b = good.clone();
+            b[offset..offset + 4].copy_from_slice(&value.to_le_bytes());
+            assert!(
+                EyeFilters::from_bytes(&reseal(b)).is_err(),
+                "offset {offset} value {value}"
+            );
+        }
+        let mut nan = good.clone();
+        nan[40..44].copy_from_slice(&f32::NAN.to_le_bytes());
+        assert!(EyeFilters::from_bytes(&reseal(nan)).is_err());
+    }
+}

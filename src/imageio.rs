@@ -1,0 +1,728 @@
+//! Reading and writing images.
+//!
+//! * Reading detects the format from the content (not the extension), checks the declared size
+//!   against a pixel limit *before* decoding (so a hostile 100000 x 100000 header costs nothing),
+//!   bounds the decoder's allocations, and applies the EXIF orientation so faces are upright.
+//! * Writing picks the format from the output extension, converts channels only where the format
+//!   cannot store them, writes to a temporary file in the destination folder and renames it into
+//!   place (atomic: readers never see a half-written file), and never overwrites an input.
+
+use crate::{Error, Result};
+use image::codecs::jpeg::JpegEncoder;
+use image::codecs::pnm::{PnmEncoder, PnmSubtype, SampleEncoding};
+use image::{DynamicImage, GrayImage, ImageDecoder, ImageFormat, ImageReader, Limits};
+use std::io::{BufRead, BufWriter, Cursor, Seek, Write};
+use std::path::{Path, PathBuf};
+
+/// Default decoded-size limit: 250 megapixels. Generous enough for 100-megapixel medium-format
+/// photos and large panoramas, yet it stops decompression bombs (250 MP of 8-bit RGB is 750 MB).
+pub const DEFAULT_MAX_PIXELS: u64 = 250_000_000;
+
+/// Bytes per pixel of the widest decoded layout (`Rgba32F`): the allocation bound handed to the
+/// decoders is `max_pixels` times this (plus slack for decoder state).
+const MAX_BYTES_PER_PIXEL: u64 = 16;
+
+/// Read an image file, detecting its format from the content.
+///
+/// The declared dimensions are checked against `max_pixels` before any pixel is decoded
+/// ([`Error::TooLarge`]), and the decoder's allocations are bounded accordingly. The EXIF
+/// orientation (JPEG, TIFF, WebP) is applied, so the result is upright; a missing or unreadable
+/// orientation tag is treated as "no transform".
+///
+/// # Errors
+/// [`Error::Io`] if the file cannot be opened, [`Error::Image`] if the format is unknown or the
+/// data is corrupt, [`Error::TooLarge`] if the image exceeds `max_pixels`.
+pub fn read_image(path: &Path, max_pixels: u64) -> Result<DynamicImage> {
+    let open = || -> std::io::Result<ImageReader<std::io::BufReader<std::fs::File>>> {
+        ImageReader::open(path)?.with_guessed_format()
+    };
+    decode(open, max_pixels, path)
+}
+
+/// [`read_image`] from bytes in memory (for tests and fuzzing); errors name the path `<memory>`.
+///
+/// # Errors
+/// As [`read_image`].
+pub fn read_image_from_memory(bytes: &[u8], max_pixels: u64) -> Result<DynamicImage> {
+    let open = || ImageReader::new(Cursor::new(bytes)).with_guessed_format();
+    decode(open, max_pixels, Path::new("<memory>"))
+}
+
+/// Decode with the size check; `open` makes a fresh reader (a second one is needed only when the
+/// decoder refuses the header under the allocation limit, to report the declared size).
+fn decode<R: BufRead + Seek>(
+    open: impl Fn() -> std::io::Result<ImageReader<R>>,
+    max_pixels: u64,
+    path: &Path,
+) -> Result<DynamicImage> {
+    let io_err = |source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let image_err = |source| Error::Image {
+        path: path.to_path_buf(),
+        source,
+    };
+    let too_large = |(width, height): (u32, u32)| {
+        let pixels = u64::from(width) * u64::from(height);
+        (pixels > max_pixels).then_some(Error::TooLarge {
+            width,
+            height,
+            pixels,
+            limit: max_pixels,
+        })
+    };
+    let mut reader = open().map_err(io_err)?;
+    let mut limits = Limits::default();
+    limits.max_alloc = Some(
+        max_pixels
+            .saturating_mul(MAX_BYTES_PER_PIXEL)
+            .saturating_add(64 << 20),
+    );
+    reader.limits(limits);
+    // Building the decoder reads only the header (JPEG: the file into memory, undecoded).
+    let mut decoder = match reader.into_decoder() {
+        Ok(d) => d,
+        Err(e @ image::ImageError::Limits(_)) => {
+            // Some decoders (PNG) already refuse the header under the allocation limit: read the
+            // declared size without limits (header only) so the error says what is wrong.
+            let mut unlimited = open().map_err(io_err)?;
+            unlimited.no_limits();
+            let dims = unlimited.into_dimensions().map_err(image_err)?;
+            return Err(too_large(dims).unwrap_or_else(|| image_err(e)));
+        }
+        Err(e) => return Err(image_err(e)),
+    };
+    if let Some(e) = too_large(decoder.dimensions()) {
+        return Err(e);
+    }
+    // A corrupt EXIF block must not make an otherwise good photo unreadable.
+    let orientation = decoder
+        .orientation()
+        .unwrap_or(image::metadata::Orientation::NoTransforms);
+    let mut img = DynamicImage::from_decoder(decoder).map_err(image_err)?;
+    img.apply_orientation(orientation);
+    Ok(img)
+}
+
+/// Luma (8-bit grey) copy of any image, as used by the face detector and feature finder
+/// (Rec. 709 weights, as `image` computes them; alpha ignored).
+pub fn to_gray(img: &DynamicImage) -> GrayImage {
+    match img {
+        DynamicImage::ImageLuma8(g) => g.clone(),
+        other => other.to_luma8(),
+    }
+}
+
+/// How [`write_image_atomic`] may write.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct WriteOptions {
+    /// Replace an existing output file (never an input, see `protected`).
+    pub overwrite: bool,
+    /// Files that must never be written, whatever `overwrite` says (the inputs).
+    pub protected: Vec<PathBuf>,
+    /// JPEG quality, 1..=100 (values outside are clamped).
+    pub jpeg_quality: u8,
+}
+
+impl Default for WriteOptions {
+    fn default() -> Self {
+        Self {
+            overwrite: false,
+            protected: Vec::new(),
+            jpeg_quality: 95,
+        }
+    }
+}
+
+/// The output formats, chosen by extension.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum OutFormat {
+    Jpeg,
+    Png,
+    /// `.pgm`: grey only.
+    Pgm,
+    /// `.ppm`: RGB only.
+    Ppm,
+    /// `.pnm`: PGM for grey images, PPM otherwise.
+    Pnm,
+    Bmp,
+    Tiff,
+    WebP,
+}
+
+fn out_format(path: &Path) -> Option<OutFormat> {
+    let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+    Some(match ext.as_str() {
+        "jpg" | "jpeg" => OutFormat::Jpeg,
+        "png" => OutFormat::Png,
+        "pgm" => OutFormat::Pgm,
+        "ppm" => OutFormat::Ppm,
+        "pnm" => OutFormat::Pnm,
+        "bmp" => OutFormat::Bmp,
+        "tif" | "tiff" => OutFormat::Tiff,
+        "webp" => OutFormat::WebP,
+        _ => return None,
+    })
+}
+
+/// Whether [`write_image_atomic`] can write to `path`, judged by its extension: `jpg`/`jpeg`,
+/// `png`, `pgm`, `ppm`, `pnm`, `bmp`, `tif`/`tiff`, `webp` (case-insensitive). PBM is readable
+/// but not offered as an output: it is 1-bit and would destroy a photo.
+pub fn output_format_supported(path: &Path) -> bool {
+    out_format(path).is_some()
+}
+
+fn is_gray(img: &DynamicImage) -> bool {
+    !img.color().has_color()
+}
+
+/// Convert `img` to something `format` can store, changing as little as possible:
+///
+/// * JPEG: no alpha and 8-bit only → `L8` (grey) or `Rgb8`.
+/// * PNG: everything up to 16 bits is kept; float → 16-bit.
+/// * PGM: `L8` (colour is converted to luma); PPM: `Rgb8`; PNM: PGM for grey, else PPM (the
+///   `image` PNM encoder writes 8-bit samples only).
+/// * BMP, WebP (lossless): 8-bit, alpha kept.
+/// * TIFF: everything kept except grey float (→ 16-bit grey); `La`-16 is stored as `Rgba16`.
+fn convert_for(img: &DynamicImage, format: OutFormat) -> DynamicImage {
+    use DynamicImage as D;
+    let gray = is_gray(img);
+    let alpha = img.color().has_alpha();
+    let keep = |ok: bool, conv: fn(&D) -> D| if ok { img.clone() } else { conv(img) };
+    match format {
+        OutFormat::Jpeg => match (gray, img) {
+            (true, D::ImageLuma8(_)) | (false, D::ImageRgb8(_)) => img.clone(),
+            (true, _) => D::ImageLuma8(img.to_luma8()),
+            (false, _) => D::ImageRgb8(img.to_rgb8()),
+        },
+        OutFormat::Png => match img {
+            D::ImageRgb32F(_) => D::ImageRgb16(img.to_rgb16()),
+            D::ImageRgba32F(_) => D::ImageRgba16(img.to_rgba16()),
+            _ => img.clone(),
+        },
+        OutFormat::Pgm => keep(matches!(img, D::ImageLuma8(_)), |i| {
+            D::ImageLuma8(i.to_luma8())
+        }),
+        OutFormat::Ppm => keep(matches!(img, D::ImageRgb8(_)), |i| {
+            D::ImageRgb8(i.to_rgb8())
+        }),
+        OutFormat::Pnm if gray => convert_for(img, OutFormat::Pgm),
+        OutFormat::Pnm => convert_for(img, OutFormat::Ppm),
+        OutFormat::Bmp | OutFormat::WebP => match (gray, alpha) {
+            (true, false) => keep(matches!(img, D::ImageLuma8(_)), |i| {
+                D::ImageLuma8(i.to_luma8())
+            }),
+            (true, true) => keep(matches!(img, D::ImageLumaA8(_)), |i| {
+                D::ImageLumaA8(i.to_luma_alpha8())
+            }),
+            (false, false) => keep(matches!(img, D::ImageRgb8(_)), |i| {
+                D::ImageRgb8(i.to_rgb8())
+            }),
+            (false, true) => keep(matches!(img, D::ImageRgba8(_)), |i| {
+                D::ImageRgba8(i.to_rgba8())
+            }),
+        },
+        OutFormat::Tiff => match img {
+            D::ImageLumaA16(_) => D::ImageRgba16(img.to_rgba16()),
+            D::ImageLuma8(_)
+            | D::ImageLumaA8(_)
+            | D::ImageRgb8(_)
+            | D::ImageRgba8(_)
+            | D::ImageLuma16(_)
+            | D::ImageRgb16(_)
+            | D::ImageRgba16(_)
+            | D::ImageRgb32F(_)
+            | D::ImageRgba32F(_) => img.clone(),
+            _ => D::ImageRgba32F(img.to_rgba32f()),
+        },
+    }
+}
+
+fn encode<W: Write + Seek>(
+    img: &DynamicImage,
+    format: OutFormat,
+    quality: u8,
+    w: &mut W,
+) -> image::ImageResult<()> {
+    let img = convert_for(img, format);
+    match format {
+        OutFormat::Jpeg => {
+            img.write_with_encoder(JpegEncoder::new_with_quality(w, quality.clamp(1, 100)))
+        }
+        OutFormat::Png => img.write_to(w, ImageFormat::Png),
+        OutFormat::Bmp => img.write_to(w, ImageFormat::Bmp),
+        OutFormat::Tiff => img.write_to(w, ImageFormat::Tiff),
+        OutFormat::WebP => img.write_to(w, ImageFormat::WebP),
+        OutFormat::Pgm | OutFormat::Ppm | OutFormat::Pnm => {
+            let subtype = if is_gray(&img) {
+                PnmSubtype::Graymap(SampleEncoding::Binary)
+            } else {
+                PnmSubtype::Pixmap(SampleEncoding::Binary)
+            };
+            img.write_with_encoder(PnmEncoder::new(w).with_subtype(subtype))
+        }
+    }
+}
+
+/// Whether `a` and `b` name the same existing file: equal canonical paths, or (on Unix) the same
+/// device and inode, which also catches hard links.
+fn same_file(a: &Path, b: &Path) -> bool {
+    if let (Ok(ca), Ok(cb)) = (a.canonicalize(), b.canonicalize()) {
+        if ca == cb {
+            return true;
+        }
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        if let (Ok(ma), Ok(mb)) = (std::fs::metadata(a), std::fs::metadata(b)) {
+            return ma.dev() == mb.dev() && ma.ino() == mb.ino();
+        }
+    }
+    false
+}
+
+/// Write `img` to `path` atomically, in the format named by the extension (see
+/// [`output_format_supported`]; channels are converted only where the format needs it: JPEG and
+/// PNM drop alpha, formats without 16-bit samples get 8-bit, PGM gets luma).
+///
+/// The data goes to a temporary `.unshear-*.tmp` file in the same folder, is flushed and synced,
+/// then renamed over `path` — without replacing an existing file unless `opts.overwrite`. On any
+/// error the temporary file is removed.
+///
+/// # Errors
+/// [`Error::Refused`] if `path` is one of `opts.protected` (even with `overwrite`), or exists and
+/// `overwrite` is false, or has an unsupported extension; [`Error::Image`] if encoding fails;
+/// [`Error::Io`] for file-system errors.
+pub fn write_image_atomic(img: &DynamicImage, path: &Path, opts: WriteOptions) -> Result<()> {
+    let format = out_format(path).ok_or_else(|| Error::Refused {
+        path: path.to_path_buf(),
+        reason: "unknown output format (use .jpg, .png, .pgm, .ppm, .pnm, .bmp, .tif or .webp)"
+            .to_owned(),
+    })?;
+    write_atomic(path, &opts, |w| {
+        encode(img, format, opts.jpeg_quality, w).map_err(|source| Error::Image {
+            path: path.to_path_buf(),
+            source,
+        })
+    })
+}
+
+/// Writes whatever `write` produces to `path` atomically, with the same guarantees as
+/// [`write_image_atomic`]: never over a protected input, never over an existing file unless
+/// `opts.overwrite`, a temporary file in the same folder renamed into place, nothing left behind
+/// on error.
+pub fn write_atomic(
+    path: &Path,
+    opts: &WriteOptions,
+    write: impl FnOnce(&mut BufWriter<&std::fs::File>) -> Result<()>,
+) -> Result<()> {
+    let refuse = |reason: &str| Error::Refused {
+        path: path.to_path_buf(),
+        reason: reason.to_owned(),
+    };
+    let io_err = |source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    if opts.protected.iter().any(|p| same_file(p, path)) {
+        return Err(refuse("it is an input file"));
+    }
+    if !opts.overwrite && path.exists() {
+        return Err(refuse("it exists; use --force to replace it"));
+    }
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".unshear-").suffix(".tmp");
+    // tempfile creates 0600 files; an output should get the usual 0666-minus-umask instead.
+    #[cfg(unix)]
+    builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
+    let tmp = builder.tempfile_in(dir).map_err(io_err)?;
+    {
+        let mut w = BufWriter::new(tmp.as_file());
+        write(&mut w)?;
+        w.flush().map_err(io_err)?;
+    }
+    tmp.as_file().sync_all().map_err(io_err)?;
+    if opts.overwrite {
+        tmp.persist(path).map_err(|e| io_err(e.error))?;
+    } else {
+        // The check above is racy; persist_noclobber makes "never replace" hold for real.
+        tmp.persist_noclobber(path).map_err(|e| {
+            if e.error.kind() == std::io::ErrorKind::AlreadyExists {
+                refuse("it exists; use --force to replace it")
+            } else {
+                io_err(e.error)
+            }
+        })?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+/// Tests of reading and writing. Each uses its own temporary folder.
+mod tests {
+    use super::*;
+    use image::{GenericImageView, ImageBuffer, Luma, LumaA, Rgb, RgbImage, Rgba};
+
+    fn smooth(x: u32, y: u32, c: u32) -> u8 {
+        (128.0 + 100.0 * ((x as f64 + 3.0 * c as f64) / 9.0).sin() * ((y as f64) / 13.0).cos())
+            as u8
+    }
+
+    fn test_images() -> Vec<DynamicImage> {
+        let (w, h) = (37, 23);
+        vec![
+            DynamicImage::ImageLuma8(ImageBuffer::from_fn(w, h, |x, y| Luma([smooth(x, y, 0)]))),
+            DynamicImage::ImageRgb8(ImageBuffer::from_fn(w, h, |x, y| {
+                Rgb([smooth(x, y, 0), smooth(x, y, 1), smooth(x, y, 2)])
+            })),
+            DynamicImage::ImageRgba8(ImageBuffer::from_fn(w, h, |x, y| {
+                Rgba([
+                    smooth(x, y, 0),
+                    smooth(x, y, 1),
+                    smooth(x, y, 2),
+                    (x * 7) as u8,
+                ])
+            })),
+        ]
+    }
+
+    fn temp_files_left(dir: &Path) -> Vec<String> {
+        std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n.starts_with(".unshear-"))
+            .collect()
+    }
+
+    #[test]
+    fn every_format_round_trips() {
+        let dir = tempfile::tempdir().unwrap();
+        for (i, img) in test_images().iter().enumerate() {
+            for ext in [
+                "png", "pgm", "ppm", "pnm", "bmp", "tif", "tiff", "webp", "jpg", "jpeg", "PNG",
+            ] {
+                let path = dir.path().join(format!("out{i}.{ext}"));
+                assert!(output_format_supported(&path));
+                write_image_atomic(img, &path, WriteOptions::default())
+                    .unwrap_or_else(|e| panic!("{ext} {:?}: {e}", img.color()));
+                let back = read_image(&path, DEFAULT_MAX_PIXELS).unwrap();
+                assert_eq!(back.dimensions(), img.dimensions(), "{ext}");
+                let format = out_format(&path).unwrap();
+                let expected = convert_for(img, format).to_rgba8();
+                let got = back.to_rgba8();
+                if format == OutFormat::Jpeg {
+                    // Lossy: quality 95 on smooth content stays within a few levels.
+                    let diffs: Vec<u8> = expected
+                        .as_raw()
+                        .iter()
+                        .zip(got.as_raw())
+                        .map(|(a, b)| a.abs_diff(*b))
+                        .collect();
+                    let mean =
+                        diffs.iter().map(|&d| f64::from(d)).sum::<f64>() / diffs.len() as f64;
+                    let max = diffs.iter().copied().max().unwrap();
+                    assert!(
+                        mean < 2.0 && max < 20,
+                        "{ext} {:?}: mean {mean} max {max}",
+                        img.color()
+                    );
+                    assert!(!back.color().has_alpha());
+                } else {
+                    assert_eq!(expected, got, "{ext} {:?}", img.color());
+                }
+                // Alpha survives where the format has it.
+                if matches!(
+                    format,
+                    OutFormat::Png | OutFormat::Tiff | OutFormat::WebP | OutFormat::Bmp
+                ) {
+                    assert_eq!(back.color().has_alpha(), img.color().has_alpha(), "{ext}");
+                }
+            }
+        }
+        assert!(temp_files_left(dir.path()).is_empty());
+    }
+
+    #[test]
+    fn sixteen_bit_is_kept_where_possible() {
+        let dir = tempfile::tempdir().unwrap();
+        let img = DynamicImage::ImageLuma16(ImageBuffer::from_fn(20, 10, |x, y| {
+            Luma([(x * 3000 + y * 7) as u16])
+        }));
+        for ext in ["png", "tif"] {
+            let path = dir.path().join(format!("deep.{ext}"));
+            write_image_atomic(&img, &path, WriteOptions::default()).unwrap();
+            assert_eq!(read_image(&path, DEFAULT_MAX_PIXELS).unwrap(), img, "{ext}");
+        }
+        // PGM is written 8-bit.
+        let path = dir.path().join("deep.pgm");
+        write_image_atomic(&img, &path, WriteOptions::default()).unwrap();
+        assert_eq!(
+            read_image(&path, DEFAULT_MAX_PIXELS).unwrap(),
+            DynamicImage::ImageLuma8(img.to_luma8())
+        );
+        // 16-bit grey with alpha to a format without 16 bits: 8-bit grey with alpha.
+        let la = DynamicImage::ImageLumaA16(ImageBuffer::from_fn(4, 4, |x, _| {
+            LumaA([(x * 20000) as u16, 65535])
+        }));
+        let path = dir.path().join("la.webp");
+        write_image_atomic(&la, &path, WriteOptions::default()).unwrap();
+        assert_eq!(
+            read_image(&path, DEFAULT_MAX_PIXELS)
+                .unwrap()
+                .to_luma_alpha8(),
+            la.to_luma_alpha8()
+        );
+    }
+
+    /// A JPEG with an EXIF APP1 segment carrying `orientation`, inserted right after SOI.
+    fn jpeg_with_orientation(img: &RgbImage, orientation: u8) -> Vec<u8> {
+        let mut jpeg = Vec::new();
+        JpegEncoder::new_with_quality(&mut jpeg, 95)
+            .encode_image(img)
+            .unwrap();
+        let mut tiff = b"MM\x00\x2a\x00\x00\x00\x08".to_vec(); // big-endian TIFF header, IFD at 8
+        tiff.extend_from_slice(&[0, 1]); // one entry
+        tiff.extend_from_slice(&[0x01, 0x12, 0, 3, 0, 0, 0, 1, 0, orientation, 0, 0]); // Orientation, SHORT
+        tiff.extend_from_slice(&[0, 0, 0, 0]); // no next IFD
+        let mut app1 = vec![0xff, 0xe1];
+        let len = (2 + 6 + tiff.len()) as u16;
+        app1.extend_from_slice(&len.to_be_bytes());
+        app1.extend_from_slice(b"Exif\0\0");
+        app1.extend_from_slice(&tiff);
+        assert_eq!(&jpeg[..2], &[0xff, 0xd8]);
+        jpeg.splice(2..2, app1);
+        jpeg
+    }
+
+    #[test]
+    fn exif_orientation_is_applied() {
+        // 32x16: left half black, right half white.
+        let img = RgbImage::from_fn(32, 16, |x, _| {
+            if x < 16 {
+                Rgb([0, 0, 0])
+            } else {
+                Rgb([255, 255, 255])
+            }
+        });
+        let bright = |i: &DynamicImage, x, y| i.get_pixel(x, y)[0] > 200;
+        let dark = |i: &DynamicImage, x, y| i.get_pixel(x, y)[0] < 50;
+
+        let plain =
+            read_image_from_memory(&jpeg_with_orientation(&img, 1), DEFAULT_MAX_PIXELS).unwrap();
+        assert_eq!(plain.dimensions(), (32, 16));
+        assert!(dark(&plain, 4, 8) && bright(&plain, 28, 8));
+
+        // 6: rotate 90 degrees clockwise to display: the left (black) half goes to the top.
+        let r90 =
+            read_image_from_memory(&jpeg_with_orientation(&img, 6), DEFAULT_MAX_PIXELS).unwrap();
+        assert_eq!(r90.dimensions(), (16, 32));
+        assert!(dark(&r90, 8, 4) && bright(&r90, 8, 28));
+
+        // 3: rotate 180 degrees: black goes to the right.
+        let r180 =
+            read_image_from_memory(&jpeg_with_orientation(&img, 3), DEFAULT_MAX_PIXELS).unwrap();
+        assert_eq!(r180.dimensions(), (32, 16));
+        assert!(bright(&r180, 4, 8) && dark(&r180, 28, 8));
+
+        // Through a file, too.
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("rotated.jpg");
+        std::fs::write(&path, jpeg_with_orientation(&img, 6)).unwrap();
+        assert_eq!(
+            read_image(&path, DEFAULT_MAX_PIXELS).unwrap().dimensions(),
+            (16, 32)
+        );
+    }
+
+    #[test]
+    fn oversized_images_are_rejected_before_decoding() {
+        // A binary PGM header that declares 100000 x 100000 pixels, followed by almost no data:
+        // decoding would need 10 GB, so reaching the decoder would fail differently (or slowly).
+        let mut pgm = b"P5\n100000 100000\n255\n".to_vec();
+        pgm.extend_from_slice(&[0; 16]);
+        match read_image_from_memory(&pgm, DEFAULT_MAX_PIXELS) {
+            Err(Error::TooLarge {
+                width,
+                height,
+                pixels,
+                limit,
+            }) => {
+                assert_eq!(
+                    (width, height, pixels, limit),
+                    (100_000, 100_000, 10_000_000_000, DEFAULT_MAX_PIXELS)
+                );
+            }
+            other => panic!("expected TooLarge, got {other:?}"),
+        }
+        // A PNG whose IHDR declares 100000 x 100000 RGB (valid CRCs), then an empty IDAT and IEND.
+        let chunk = |kind: &[u8], data: &[u8]| {
+            let mut body = kind.to_vec();
+            body.extend_from_slice(data);
+            let mut c = (data.len() as u32).to_be_bytes().to_vec();
+            c.extend_from_slice(&body);
+            c.extend_from_slice(&crc32(&body).to_be_bytes());
+            c
+        };
+        let mut ihdr = 100_000u32.to_be_bytes().to_vec();
+        ihdr.extend_from_slice(&100_000u32.to_be_bytes());
+        ihdr.extend_from_slice(&[8, 2, 0, 0, 0]);
+        let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+        png.extend(chunk(b"IHDR", &ihdr));
+        png.extend(chunk(b"IDAT", &[]));
+        png.extend(chunk(b"IEND", &[]));
+        assert!(
+            matches!(
+                read_image_from_memory(&png, DEFAULT_MAX_PIXELS),
+                Err(Error::TooLarge {
+                    width: 100_000,
+                    height: 100_000,
+                    ..
+                })
+            ),
+            "{:?}",
+            read_image_from_memory(&png, DEFAULT_MAX_PIXELS)
+        );
+        // A small real image over a small limit.
+        let mut png = Vec::new();
+        test_images()[0]
+            .write_to(&mut Cursor::new(&mut png), ImageFormat::Png)
+            .unwrap();
+        assert!(matches!(
+            read_image_from_memory(&png, 100),
+            Err(Error::TooLarge { pixels: 851, .. })
+        ));
+        assert!(read_image_from_memory(&png, 851).is_ok());
+    }
+
+    /// CRC-32 (IEEE) as PNG chunks use it.
+    fn crc32(data: &[u8]) -> u32 {
+        let mut crc = !0u32;
+        for &b in data {
+            crc ^= u32::from(b);
+            for _ in 0..8 {
+                crc = if crc & 1 != 0 {
+                    (crc >> 1) ^ 0xEDB8_8320
+                } else {
+                    crc >> 1
+                };
+            }
+        }
+        !crc
+    }
+
+    #[test]
+    fn garbage_and_missing_files_are_errors() {
+        assert!(matches!(
+            read_image_from_memory(b"not an image at all", 1000),
+            Err(Error::Image { .. })
+        ));
+        assert!(matches!(
+            read_image_from_memory(b"\x89PNG\r\n\x1a\n\0\0", 1000),
+            Err(Error::Image { .. })
+        ));
+        let dir = tempfile::tempdir().unwrap();
+        assert!(matches!(
+            read_image(&dir.path().join("missing.png"), 1000),
+            Err(Error::Io { .. })
+        ));
+    }
+
+    #[test]
+    fn never_overwrites_an_input() {
+        let dir = tempfile::tempdir().unwrap();
+        let img = &test_images()[1];
+        let input = dir.path().join("in.png");
+        write_image_atomic(img, &input, WriteOptions::default()).unwrap();
+        let before = std::fs::read(&input).unwrap();
+        let other = DynamicImage::ImageRgb8(RgbImage::new(5, 5));
+        let opts = WriteOptions {
+            overwrite: true,
+            protected: vec![input.clone()],
+            ..WriteOptions::default()
+        };
+        // The same path, a different spelling of it, and (Unix) a hard link to it.
+        let mut aliases = vec![input.clone(), dir.path().join(".").join("in.png")];
+        #[cfg(unix)]
+        {
+            let link = dir.path().join("link.png");
+            std::fs::hard_link(&input, &link).unwrap();
+            aliases.push(link);
+        }
+        for alias in aliases {
+            let err = write_image_atomic(&other, &alias, opts.clone()).unwrap_err();
+            assert!(matches!(err, Error::Refused { .. }), "{alias:?}: {err}");
+        }
+        assert_eq!(std::fs::read(&input).unwrap(), before);
+        assert!(temp_files_left(dir.path()).is_empty());
+    }
+
+    #[test]
+    fn existing_output_needs_overwrite() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("out.png");
+        let a = DynamicImage::ImageRgb8(RgbImage::from_pixel(3, 3, Rgb([1, 2, 3])));
+        let b = DynamicImage::ImageRgb8(RgbImage::from_pixel(3, 3, Rgb([9, 8, 7])));
+        write_image_atomic(&a, &path, WriteOptions::default()).unwrap();
+        let err = write_image_atomic(&b, &path, WriteOptions::default()).unwrap_err();
+        assert!(
+            matches!(&err, Error::Refused { reason, .. } if reason.contains("--force")),
+            "{err}"
+        );
+        assert_eq!(read_image(&path, 100).unwrap(), a);
+        write_image_atomic(
+            &b,
+            &path,
+            WriteOptions {
+                overwrite: true,
+                ..WriteOptions::default()
+            },
+        )
+        .unwrap();
+        assert_eq!(read_image(&path, 100).unwrap(), b);
+        assert!(temp_files_left(dir.path()).is_empty());
+    }
+
+    #[test]
+    fn failures_leave_no_temp_files() {
+        let dir = tempfile::tempdir().unwrap();
+        let img = &test_images()[0];
+        // Unknown extension.
+        let path = dir.path().join("out.xyz");
+        assert!(!output_format_supported(&path));
+        assert!(matches!(
+            write_image_atomic(img, &path, WriteOptions::default()),
+            Err(Error::Refused { .. })
+        ));
+        assert!(!output_format_supported(Path::new("noext")));
+        // Encoding failure (an empty image cannot be encoded as JPEG) after the temp file exists.
+        let empty = DynamicImage::ImageRgb8(RgbImage::new(0, 0));
+        let path = dir.path().join("empty.jpg");
+        assert!(write_image_atomic(&empty, &path, WriteOptions::default()).is_err());
+        assert!(!path.exists());
+        // Missing folder.
+        assert!(matches!(
+            write_image_atomic(
+                img,
+                &dir.path().join("no/such/dir/x.png"),
+                WriteOptions::default()
+            ),
+            Err(Error::Io { .. })
+        ));
+        assert!(temp_files_left(dir.path()).is_empty());
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+    }
+
+    #[test]
+    fn gray_conversion() {
+        let img = DynamicImage::ImageRgb8(RgbImage::from_pixel(2, 2, Rgb([255, 255, 255])));
+        assert_eq!(to_gray(&img).get_pixel(1, 1)[0], 255);
+        let g = test_images()[0].clone();
+        assert_eq!(&to_gray(&g), g.as_luma8().unwrap());
+    }
+}

@@ -1,0 +1,39 @@
+//! # unshear
+//!
+//! Remove rolling-shutter skew from photos and video frames of people, using the face itself as
+//! the ruler (Viola-Jones face detection, UMACE correlation filters for eyes and nostrils, the shear
+//! estimate of equation 5 and the row-shift correction of equation 6 of the paper in
+//! `../shared/paper/`).
+//!
+//! Data flows one way through the modules:
+//!
+//! ```text
+//! imageio ─▶ detect ─▶ features (filters) ─▶ estimate ─▶ warp ─▶ imageio
+//! ```
+//!
+//! * [`imageio`]: read (EXIF orientation applied, size-limited) and write (atomic, never over an input).
+//! * [`detect`]: OpenCV-compatible Viola-Jones face detection on Haar cascades.
+//! * [`filters`]: UMACE correlation filters: synthesis, file format, frequency-domain correlation.
+//! * [`features`]: eyes and nostrils located in the 150-px face with the filters.
+//! * [`estimate`]: the shear `k` from the feature points (equation 5).
+//! * [`warp`]: sub-pixel row shifts that apply or undo a shear (equation 6).
+//! * [`pipeline`]: all of the above behind one [`Unshear`] value.
+//! * [`train`]: building the eye filters from an annotated data set.
+
+pub mod annotate;
+pub mod dataset;
+pub mod detect;
+pub mod error;
+pub mod estimate;
+pub mod eval;
+pub mod features;
+pub mod filters;
+pub mod geometry;
+pub mod imageio;
+pub mod pipeline;
+pub mod train;
+pub mod warp;
+
+pub use error::{Error, Result};
+pub use geometry::{Point, Rect, Shear};
+pub use pipeline::{FaceReport, ImageReport, Unshear};

@@ -1,0 +1,272 @@
+//! The command-line contract: JSON shape, exit codes, output naming and never overwriting inputs.
+
+use std::path::{Path, PathBuf};
+
+use assert_cmd::Command;
+
+fn fixture(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/fixtures/faces")
+        .join(name)
+}
+
+fn unshear() -> Command {
+    Command::cargo_bin("unshear").expect("binary built")
+}
+
+/// A sheared copy of a fixture in `dir`, made with `unshear distort`.
+fn distorted(dir: &Path, k: f64) -> PathBuf {
+    let out = dir.join(format!("face_{k}.png"));
+    unshear()
+        .args(["distort", "--k", &k.to_string(), "-o"])
+        .arg(&out)
+        .arg(fixture("subject01.normal.jpeg"))
+        .assert()
+        .success();
+    out
+}
+
+fn json_lines(stdout: &[u8]) -> Vec<serde_json::Value> {
+    String::from_utf8_lossy(stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("each line is JSON"))
+        .collect()
+}
+
+#[test]
+fn estimate_json_has_the_documented_shape() {
+    let out = unshear()
+        .args(["estimate", "--json"])
+        .arg(fixture("subject01.normal.jpeg"))
+        .assert()
+        .success()
+        .get_output()
+        .stdout
+        .clone();
+    let lines = json_lines(&out);
+    assert_eq!(lines.len(), 1);
+    let v = &lines[0];
+    let obj = v.as_object().expect("object");
+    let mut keys: Vec<&str> = obj.keys().map(String::as_str).collect();
+    keys.sort();
+    assert_eq!(keys, ["faces", "file", "k"]);
+    assert!(v["file"]
+        .as_str()
+        .expect("file")
+        .ends_with("subject01.normal.jpeg"));
+    assert!(v["k"].as_f64().expect("k is a number").abs() < 0.05);
+    let face = &v["faces"][0];
+    let mut fkeys: Vec<&str> = face
+        .as_object()
+        .expect("face")
+        .keys()
+        .map(String::as_str)
+        .collect();
+    fkeys.sort();
+    assert_eq!(
+        fkeys,
+        [
+            "box",
+            "confidence",
+            "k",
+            "left_eye",
+            "left_nostril",
+            "right_eye",
+            "right_nostril"
+        ]
+    );
+    assert_eq!(face["box"].as_array().expect("box").len(), 4);
+    for p in ["right_eye", "left_eye", "right_nostril", "left_nostril"] {
+        let xy = face[p].as_array().expect("point");
+        assert_eq!(xy.len(), 2);
+        assert!(xy.iter().all(|c| c.is_f64()));
+    }
+    assert!(face["right_eye"][0].as_f64() < face["left_eye"][0].as_f64());
+}
+
+#[test]
+fn estimate_reports_the_applied_shear() {
+    let dir = tempfile::tempdir().expect("temp");
+    let img = distorted(dir.path(), 0.3);
+    let out = unshear()
+        .args(["estimate", "--json"])
+        .arg(&img)
+        .assert()
+        .success();
+    let k = json_lines(&out.get_output().stdout)[0]["k"]
+        .as_f64()
+        .expect("k");
+    assert!((k - 0.3).abs() <= 0.05, "k {k}");
+}
+
+#[test]
+fn one_bad_file_fails_the_batch_with_1_but_the_rest_is_processed() {
+    let dir = tempfile::tempdir().expect("temp");
+    let bad = dir.path().join("broken.jpg");
+    std::fs::write(&bad, b"not a jpeg at all").expect("write");
+    let out = unshear()
+        .args(["estimate", "--json"])
+        .arg(&bad)
+        .arg(fixture("subject03.normal.jpeg"))
+        .arg(dir.path().join("missing.png"))
+        .assert()
+        .code(1)
+        .get_output()
+        .clone();
+    let lines = json_lines(&out.stdout);
+    assert_eq!(lines.len(), 3);
+    assert!(lines[0]["error"].is_string() && lines[0]["k"].is_null());
+    assert!(lines[1]["k"].is_f64() && lines[1].get("error").is_none());
+    assert!(lines[2]["error"].is_string());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("broken.jpg") && stderr.contains("missing.png"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn usage_errors_exit_2() {
+    unshear().args(["estimate"]).assert().code(2);
+    unshear()
+        .args(["correct", "--canvas", "sideways", "x.jpg"])
+        .assert()
+        .code(2);
+    unshear().args(["bogus"]).assert().code(2);
+    let a = fixture("subject01.normal.jpeg");
+    let b = fixture("subject03.normal.jpeg");
+    unshear()
+        .arg("correct")
+        .arg(&a)
+        .arg(&b)
+        .args(["-o", "out.png"])
+        .assert()
+        .code(2);
+}
+
+#[test]
+fn correct_writes_beside_the_input_and_never_over_it() {
+    let dir = tempfile::tempdir().expect("temp");
+    let img = distorted(dir.path(), -0.2);
+    let before = std::fs::read(&img).expect("read");
+    unshear().arg("correct").arg(&img).assert().success();
+    let out = dir.path().join("face_-0.2.unshear.png");
+    assert!(out.exists(), "default output beside the input");
+    // Same run again: the output exists, so it is refused without --force (exit 1)...
+    unshear().arg("correct").arg(&img).assert().code(1);
+    unshear()
+        .arg("correct")
+        .arg(&img)
+        .arg("--force")
+        .assert()
+        .success();
+    // ...and an output equal to the input is refused even with --force.
+    let res = unshear()
+        .arg("correct")
+        .arg(&img)
+        .arg("-o")
+        .arg(&img)
+        .arg("--force")
+        .assert()
+        .code(1);
+    assert!(String::from_utf8_lossy(&res.get_output().stderr).contains("refusing"));
+    assert_eq!(
+        std::fs::read(&img).expect("read"),
+        before,
+        "input untouched"
+    );
+    // No temporary files are left behind.
+    let leftovers: Vec<_> = std::fs::read_dir(dir.path())
+        .expect("list")
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().contains(".tmp"))
+        .collect();
+    assert!(leftovers.is_empty());
+}
+
+#[test]
+fn corrected_output_has_the_shear_removed() {
+    let dir = tempfile::tempdir().expect("temp");
+    let img = distorted(dir.path(), 0.35);
+    let out = dir.path().join("fixed.png");
+    let annotated = dir.path().join("why.png");
+    let res = unshear()
+        .arg("correct")
+        .arg(&img)
+        .arg("-o")
+        .arg(&out)
+        .arg("--annotate")
+        .arg(&annotated)
+        .arg("--json")
+        .assert()
+        .success();
+    let k = json_lines(&res.get_output().stdout)[0]["k"]
+        .as_f64()
+        .expect("k");
+    assert!((k - 0.35).abs() <= 0.05);
+    let fixed = image::open(&out).expect("output decodes");
+    let input = image::open(&img).expect("input decodes");
+    assert_eq!(
+        (fixed.width(), fixed.height()),
+        (input.width(), input.height())
+    );
+    assert_eq!(fixed.color(), input.color(), "channels kept");
+    assert!(image::open(&annotated).is_ok());
+    let again = unshear()
+        .args(["estimate", "--json"])
+        .arg(&out)
+        .assert()
+        .success();
+    let residual = json_lines(&again.get_output().stdout)[0]["k"]
+        .as_f64()
+        .expect("k");
+    assert!(residual.abs() <= 0.05, "residual {residual}");
+}
+
+#[test]
+fn no_face_gives_null_and_writes_nothing_unless_k_is_given() {
+    let dir = tempfile::tempdir().expect("temp");
+    let blank = dir.path().join("blank.png");
+    image::GrayImage::from_pixel(200, 150, image::Luma([90]))
+        .save(&blank)
+        .expect("save");
+    let res = unshear()
+        .args(["correct", "--json"])
+        .arg(&blank)
+        .assert()
+        .success();
+    let line = &json_lines(&res.get_output().stdout)[0];
+    assert!(line["k"].is_null() && line["faces"].as_array().expect("faces").is_empty());
+    assert!(String::from_utf8_lossy(&res.get_output().stderr).contains("no face found"));
+    assert!(!dir.path().join("blank.unshear.png").exists());
+    unshear()
+        .args(["correct", "--k", "0.1"])
+        .arg(&blank)
+        .assert()
+        .success();
+    assert!(dir.path().join("blank.unshear.png").exists());
+}
+
+#[test]
+fn folders_are_walked_and_out_dir_keeps_the_layout() {
+    let dir = tempfile::tempdir().expect("temp");
+    let sub = dir.path().join("in/sub");
+    std::fs::create_dir_all(&sub).expect("mkdir");
+    std::fs::copy(fixture("subject05.normal.jpeg"), sub.join("a.jpeg")).expect("copy");
+    std::fs::copy(
+        fixture("subject03.normal.jpeg"),
+        dir.path().join("in/b.jpeg"),
+    )
+    .expect("copy");
+    let out = dir.path().join("out");
+    let res = unshear()
+        .arg("correct")
+        .arg(dir.path().join("in"))
+        .arg("--out-dir")
+        .arg(&out)
+        .arg("--json")
+        .assert()
+        .success();
+    assert_eq!(json_lines(&res.get_output().stdout).len(), 2);
+    assert!(out.join("sub/a.jpeg").exists() && out.join("b.jpeg").exists());
+}

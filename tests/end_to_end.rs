@@ -1,0 +1,140 @@
+//! End-to-end tests on real faces (tests/fixtures/faces, see SOURCE.md) with known synthetic
+//! shear: the whole pipeline, detection included, as a user runs it.
+
+use std::path::{Path, PathBuf};
+
+use image::DynamicImage;
+use unshear::warp::{apply_shear, Canvas, Interpolation};
+use unshear::{Shear, Unshear};
+
+fn fixtures() -> Vec<PathBuf> {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/faces");
+    let mut v: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .expect("fixture folder")
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "jpeg"))
+        .collect();
+    v.sort();
+    assert_eq!(v.len(), 3, "three fixture faces");
+    v
+}
+
+fn load(p: &Path) -> DynamicImage {
+    unshear::imageio::read_image(p, unshear::imageio::DEFAULT_MAX_PIXELS).expect("fixture decodes")
+}
+
+fn sheared(img: &DynamicImage, k: f64) -> DynamicImage {
+    apply_shear(
+        img,
+        Shear::about_middle(k, img.height()),
+        Interpolation::Linear,
+        Canvas::Expand,
+    )
+    .0
+}
+
+/// The requirement: within 0.05 of the true k on each fixture for each k.
+#[test]
+fn estimate_within_0_05_of_the_true_shear() {
+    let unshear = Unshear::with_defaults().expect("built-in models");
+    for path in fixtures() {
+        let img = load(&path);
+        for k in [-0.40, -0.20, 0.0, 0.20, 0.40] {
+            let report = unshear.estimate(&sheared(&img, k));
+            assert_eq!(report.faces.len(), 1, "{}: k {k}: one face", path.display());
+            let est = report.k.expect("an estimate");
+            assert!(
+                (est - k).abs() <= 0.05,
+                "{}: true {k}, estimated {est:.4}",
+                path.display()
+            );
+        }
+    }
+}
+
+/// Correcting with the estimate leaves (almost) no shear: re-estimating the corrected image gives
+/// the fixture's own unsheared estimate back within 0.03.
+#[test]
+fn correcting_removes_the_shear() {
+    let unshear = Unshear::with_defaults().expect("built-in models");
+    let path = &fixtures()[0];
+    let img = load(path);
+    let base = unshear.estimate(&img).k.expect("estimate on the original");
+    let distorted = sheared(&img, 0.3);
+    let report = unshear.estimate(&distorted);
+    let fixed = unshear
+        .correct(&distorted, &report, &Default::default())
+        .expect("correct");
+    assert_eq!(
+        (fixed.width(), fixed.height()),
+        (distorted.width(), distorted.height())
+    );
+    let residual = unshear
+        .estimate(&fixed)
+        .k
+        .expect("estimate after correction");
+    assert!(
+        (residual - base).abs() <= 0.03,
+        "residual {residual:.4} vs original {base:.4}"
+    );
+}
+
+/// k is dimensionless: the estimate on a 1.5x enlarged image matches the original's within 0.02
+/// (the face is resampled to 150 px either way; what differs is interpolation noise).
+#[test]
+fn estimate_is_unchanged_by_uniform_rescale() {
+    let unshear = Unshear::with_defaults().expect("built-in models");
+    for path in fixtures() {
+        let img = sheared(&load(&path), 0.2);
+        let big = img.resize_exact(
+            img.width() * 3 / 2,
+            img.height() * 3 / 2,
+            image::imageops::FilterType::Triangle,
+        );
+        let (a, b) = (
+            unshear.estimate(&img).k.expect("k"),
+            unshear.estimate(&big).k.expect("k"),
+        );
+        assert!(
+            (a - b).abs() <= 0.02,
+            "{}: {a:.4} vs {b:.4} after rescale",
+            path.display()
+        );
+    }
+}
+
+/// A mirror image shears the other way: its estimate is minus the original's, within 0.03
+/// (the filters for the two eyes are trained separately, so the match is not exact).
+#[test]
+fn mirror_image_gives_minus_k() {
+    let unshear = Unshear::with_defaults().expect("built-in models");
+    for path in fixtures() {
+        let img = sheared(&load(&path), 0.25);
+        let a = unshear.estimate(&img).k.expect("k");
+        let b = unshear.estimate(&img.fliph()).k.expect("k of mirror");
+        assert!(
+            (a + b).abs() <= 0.03,
+            "{}: {a:.4} and mirrored {b:.4}",
+            path.display()
+        );
+    }
+}
+
+/// Points are reported in the input's own pixels: the eyes lie inside the face box, the
+/// subject's right eye on the image's left, nostrils below the eyes.
+#[test]
+fn points_are_in_image_pixels_with_the_subjects_sides() {
+    let unshear = Unshear::with_defaults().expect("built-in models");
+    let img = load(&fixtures()[1]);
+    let report = unshear.estimate(&img);
+    let f = report.faces.first().expect("a face");
+    assert!(f.face_box.contains(f.right_eye) && f.face_box.contains(f.left_eye));
+    assert!(f.right_eye.x < f.left_eye.x && f.right_nostril.x < f.left_nostril.x);
+    assert!(f.right_nostril.y > f.right_eye.y + 10.0 && f.left_nostril.y > f.left_eye.y + 10.0);
+    // Clear eyes on a lab photo give clear correlation peaks; confidence is the weakest peak.
+    assert!(f.psr[0] > 4.0 && f.psr[1] > 4.0, "eye PSRs {:?}", f.psr);
+    assert_eq!(
+        f.confidence,
+        f.psr.iter().copied().fold(f64::INFINITY, f64::min)
+    );
+}
