@@ -235,7 +235,7 @@ impl ShearEvalResult {
         if let Some(m) = median(times) {
             let _ = writeln!(
                 s,
-                "Median time per image (detection + estimate, one thread): {m:.1} ms"
+                "Median wall time per image (detection + estimate, measured inside the parallel run): {m:.1} ms"
             );
         }
         s

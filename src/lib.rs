@@ -37,3 +37,8 @@ pub mod warp;
 pub use error::{Error, Result};
 pub use geometry::{Point, Rect, Shear};
 pub use pipeline::{FaceReport, ImageReport, Unshear};
+
+/// The README's Rust example, compiled as a doctest so it cannot go stale.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;

@@ -25,7 +25,7 @@ use crate::annotate::FaceMarks;
 use crate::detect::FaceDetector;
 use crate::error::{Error, Result};
 use crate::estimate::shear_from_sides;
-use crate::features::{FeatureLocator, NormalizedFace};
+use crate::features::{FacePoints, FeatureLocator, NormalizedFace};
 use crate::filters::{Correlator, EyeFilters};
 use crate::geometry::{Point, Rect, Shear};
 use crate::warp::{self, Canvas, Interpolation};
@@ -34,6 +34,9 @@ use crate::warp::{self, Canvas, Interpolation};
 /// that `--region face` corrects: the box covers brows to chin; the margin takes in the hair and
 /// jaw line, and the feathered edge of the warp lies outside the face.
 pub const FACE_REGION_MARGIN: f64 = 0.3;
+
+/// Default number of refinement passes (see [`Unshear::set_refinements`]).
+pub const DEFAULT_REFINEMENTS: usize = 0;
 
 /// What was found for one face.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -118,6 +121,7 @@ pub struct CorrectOptions {
 pub struct Unshear {
     detector: FaceDetector,
     filters: EyeFilters,
+    refinements: usize,
 }
 
 thread_local! {
@@ -128,7 +132,17 @@ thread_local! {
 impl Unshear {
     /// A corrector from a detector and filters.
     pub fn new(detector: FaceDetector, filters: EyeFilters) -> Self {
-        Self { detector, filters }
+        Self {
+            detector,
+            filters,
+            refinements: DEFAULT_REFINEMENTS,
+        }
+    }
+
+    /// Sets how many times the features are located again in the face de-sheared by the
+    /// previous estimate (0: the nose filter's first estimate alone sets the nostril crops).
+    pub fn set_refinements(&mut self, refinements: usize) {
+        self.refinements = refinements;
     }
 
     /// The built-in models: OpenCV's `haarcascade_frontalface_alt2` and the trained eye filters.
@@ -195,16 +209,17 @@ impl Unshear {
                 _ => Correlator::new(size),
             };
             let mut locator = FeatureLocator::with_correlator(&self.filters, correlator);
-            let points = locator.locate(&face, None);
+            let mut points = locator.locate(&face, None);
+            for _ in 0..self.refinements {
+                match points_shear(&points) {
+                    Some(k) => points = locator.locate(&face, Some(k)),
+                    None => break,
+                }
+            }
             *slot = Some(locator.into_correlator());
             points
         });
-        let k = shear_from_sides(
-            points.right_eye_point,
-            points.right_nose_point,
-            points.left_eye_point,
-            points.left_nose_point,
-        )?;
+        let k = points_shear(&points)?;
         Some(FaceReport {
             face_box,
             right_eye: points.right_eye,
@@ -265,6 +280,16 @@ impl Unshear {
             }
         }
     }
+}
+
+/// Equation 5 on located points.
+fn points_shear(p: &FacePoints) -> Option<f64> {
+    shear_from_sides(
+        p.right_eye_point,
+        p.right_nose_point,
+        p.left_eye_point,
+        p.left_nose_point,
+    )
 }
 
 /// Median of finite values (mean of the middle two for an even count); `None` when empty.

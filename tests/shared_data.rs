@@ -63,15 +63,35 @@ fn caltech_slice_tracks_the_shear() {
         max_pixels: unshear::imageio::DEFAULT_MAX_PIXELS,
     };
     let result = evaluate_shear(&unshear, &faces, &options, || {});
-    for k in [0.0, 0.3] {
-        let at: Vec<_> = result.samples.iter().filter(|s| s.true_k == k).collect();
-        let detected = at.iter().filter(|s| s.detected).count() as f64 / at.len() as f64;
-        assert!(detected >= 0.8, "k {k}: detection rate {detected}");
-        let est: Vec<f64> = at.iter().filter_map(|s| s.estimate).collect();
-        let median = unshear::pipeline::median(est).expect("estimates");
-        assert!(
-            (median - k).abs() <= 0.12,
-            "k {k}: median estimate {median}"
-        );
-    }
+    let at = |k: f64| -> Vec<&unshear::eval::ShearSample> {
+        result.samples.iter().filter(|s| s.true_k == k).collect()
+    };
+    let detected = |k: f64| at(k).iter().filter(|s| s.detected).count() as f64 / at(k).len() as f64;
+    let median = |k: f64| {
+        unshear::pipeline::median(at(k).iter().filter_map(|s| s.estimate).collect())
+            .expect("estimates")
+    };
+    // Full development set (README): 92% found unsheared, 78-80% at |k| = 0.33.
+    assert!(
+        detected(0.0) >= 0.8,
+        "detection rate unsheared {}",
+        detected(0.0)
+    );
+    assert!(
+        detected(0.3) >= 0.6,
+        "detection rate at 0.3 {}",
+        detected(0.3)
+    );
+    // Full set: median -0.006 unsheared (these first 60 faces: 0.045); 0.245 at 0.33, where the
+    // estimator follows about 3/4 of the shear.
+    assert!(
+        median(0.0).abs() <= 0.08,
+        "median unsheared {}",
+        median(0.0)
+    );
+    assert!(
+        (0.15..=0.4).contains(&median(0.3)),
+        "median at 0.3 {}",
+        median(0.3)
+    );
 }

@@ -41,6 +41,9 @@ pub struct ModelArgs {
     /// Refuse images with more pixels than this (checked before decoding).
     #[arg(long, value_name = "N", default_value_t = unshear::imageio::DEFAULT_MAX_PIXELS)]
     pub max_pixels: u64,
+    /// Refinement passes: locate the features again in the face de-sheared by the last estimate.
+    #[arg(long, value_name = "N", default_value_t = unshear::pipeline::DEFAULT_REFINEMENTS)]
+    pub refine: usize,
     /// Worker threads [default: one per core].
     #[arg(long, short = 'j', value_name = "N")]
     pub jobs: Option<usize>,

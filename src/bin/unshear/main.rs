@@ -70,7 +70,9 @@ fn load_models(m: &ModelArgs) -> Result<Unshear> {
         }
         None => EyeFilters::embedded().context("loading the built-in filters")?,
     };
-    Ok(Unshear::new(detector, filters))
+    let mut unshear = Unshear::new(detector, filters);
+    unshear.set_refinements(m.refine);
+    Ok(unshear)
 }
 
 /// Prints a line to stdout, ignoring a closed pipe (e.g. `| head`) rather than panicking.
@@ -101,6 +103,14 @@ fn describe(report: &ImageReport) -> String {
     }
 }
 
+/// One failed input: its JSON line (with `--json`) and one line on stderr naming the file.
+fn report_failure(json: bool, file: &str, error: String, bar: &indicatif::ProgressBar) {
+    bar.suspend(|| eprintln!("unshear: {file}: {error}"));
+    if json {
+        print_line(&JsonLine::error(file, error).to_line());
+    }
+}
+
 fn estimate(a: EstimateArgs) -> Result<bool> {
     let unshear = load_models(&a.model)?;
     let inputs = collect_inputs(&a.inputs);
@@ -123,10 +133,7 @@ fn estimate(a: EstimateArgs) -> Result<bool> {
                 Ok(report) => bar.suspend(|| print_line(&format!("{file}: {}", describe(&report)))),
                 Err(e) => {
                     all_ok = false;
-                    if a.json {
-                        print_line(&JsonLine::error(&file, e.clone()).to_line());
-                    }
-                    bar.suspend(|| eprintln!("unshear: {file}: {e}"));
+                    report_failure(a.json, &file, e, bar);
                 }
             }
         },
@@ -281,10 +288,7 @@ fn correct(a: CorrectArgs) -> Result<bool> {
                 }
                 Err(e) => {
                     all_ok = false;
-                    if a.json {
-                        print_line(&JsonLine::error(&file, e.clone()).to_line());
-                    }
-                    bar.suspend(|| eprintln!("unshear: {file}: {e}"));
+                    report_failure(a.json, &file, e, bar);
                 }
             }
         },
