@@ -13,8 +13,13 @@
 //! which lets the estimator re-measure with the shear it already found removed; see
 //! [`FeatureLocator::locate`].
 //!
-//! Every geometric constant below is in normalised-face pixels (face box 150 px wide) and says
-//! how it was chosen.
+//! The nose needs one step the paper does not have: under strong shear the nose slides sideways
+//! out of a nostril crop placed for an upright face, so a third filter, trained on the whole
+//! lower nose, first finds the nose in a wide window ([`FeatureLocator::nose_shear`]); the
+//! nostril crops are then cut from the face de-sheared by that first estimate.
+//!
+//! Every geometric constant below says its unit (normalised-face pixels, face box 150 px wide, or
+//! eye distances) and how it was chosen.
 
 use image::GrayImage;
 
@@ -384,7 +389,8 @@ impl<'f> FeatureLocator<'f> {
 
     /// A first shear estimate from the nose: the nose filter's peak, searched widely below the
     /// eyes, against the eyes' midpoint (a vertical line of the upright face joins them).
-    /// Returns the estimate and the nose position found.
+    /// The eyes are given, and the nose returned, in normalised-face coordinates of the face as
+    /// it is (not de-sheared). Returns the estimate and the nose found.
     pub fn nose_shear(
         &mut self,
         face: &NormalizedFace,
@@ -416,7 +422,8 @@ impl<'f> FeatureLocator<'f> {
     }
 
     /// Locates both eyes and both nostrils in `face`, looking at the view de-sheared by `k`
-    /// (pass 0 for the face as it is, or `None` to pick the best of [`SHEAR_HYPOTHESES`] first),
+    /// (pass 0 for the face as it is, or `None` to de-shear first by the nose filter's estimate,
+    /// [`FeatureLocator::nose_shear`]),
     /// and returns the points in image pixels.
     ///
     /// The eye row is the pivot of the de-shearing, so the eyes stay where the detector box puts
@@ -459,117 +466,6 @@ impl<'f> FeatureLocator<'f> {
                 left_nostril.peak.psr,
             ],
         }
-    }
-}
-
-/// Rows of the face used by [`symmetry_shear`], in eye distances from the eye line: from just
-/// above the eyes to below the mouth (Caltech medians: nose 0.74, mouth 1.09 eye distances
-/// below the eyes).
-pub const SYMMETRY_ROWS: (f64, f64) = (-0.2, 1.3);
-/// Half-width (eye distances) of the strip compared with its mirror image: the inner eye
-/// corners, the nose and the mouth, not the cheeks' outline, which yaw and the background change.
-pub const SYMMETRY_HALF_WIDTH: f64 = 0.55;
-/// Rows per band whose symmetry axis is found on its own.
-const SYMMETRY_BAND_ROWS: usize = 6;
-/// How far (eye distances) a band's axis may lie from the eyes' midpoint.
-const SYMMETRY_AXIS_REACH: f64 = 0.6;
-
-/// The shear of a face from the tilt of its mirror-symmetry axis.
-///
-/// A face is close to mirror-symmetric about a vertical line; a horizontal shear turns that line
-/// into one of slope `k` (pixels sideways per row). The face is cut into horizontal bands, each
-/// band's axis is the column about which it best matches its own mirror image (normalised
-/// cross-correlation), and a line `x = x0 + k v` is fitted through the band axes by weighted
-/// least squares. Returns `(k, mean band score)`, or `None` when fewer than three bands show
-/// any symmetry. This needs no feature detector, so it tolerates any shear; the feature
-/// points then refine it (see [`FeatureLocator::locate`]).
-pub fn symmetry_shear(
-    face: &NormalizedFace,
-    right_eye: Point,
-    left_eye: Point,
-) -> Option<(f64, f64)> {
-    let ed = right_eye.distance(left_eye).max(1.0);
-    let mid = right_eye.midpoint(left_eye);
-    let half = (SYMMETRY_HALF_WIDTH * ed).round().max(2.0) as isize;
-    let reach = (SYMMETRY_AXIS_REACH * ed).round() as isize;
-    let v_from = (mid.y + SYMMETRY_ROWS.0 * ed).round() as isize;
-    let v_to = (mid.y + SYMMETRY_ROWS.1 * ed).round() as isize;
-    let mx = mid.x.round() as isize;
-    let (w, h) = (face.width as isize, face.height as isize);
-    let at = |u: isize, v: isize| -> f64 {
-        let x = (u + MARGIN_X as isize).clamp(0, w - 1);
-        let y = (v + MARGIN_Y as isize).clamp(0, h - 1);
-        f64::from(face.pixels[(y * w + x) as usize])
-    };
-    let mut fits = Vec::new();
-    let mut band = v_from;
-    while band + SYMMETRY_BAND_ROWS as isize <= v_to {
-        let rows = band..band + SYMMETRY_BAND_ROWS as isize;
-        let score = |c: isize| -> f64 {
-            let (mut sa, mut sb, mut saa, mut sbb, mut sab, mut n) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
-            for v in rows.clone() {
-                for d in 1..=half {
-                    let (a, b) = (at(c - d, v), at(c + d, v));
-                    sa += a;
-                    sb += b;
-                    saa += a * a;
-                    sbb += b * b;
-                    sab += a * b;
-                    n += 1.0;
-                }
-            }
-            let cov = sab - sa * sb / n;
-            let var = (saa - sa * sa / n) * (sbb - sb * sb / n);
-            if var > 1e-9 {
-                cov / var.sqrt()
-            } else {
-                0.0
-            }
-        };
-        let scores: Vec<f64> = (-reach..=reach).map(|o| score(mx + o)).collect();
-        if let Some((i, &best)) = scores.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1)) {
-            let sub = if i > 0 && i + 1 < scores.len() {
-                parabola(scores[i - 1], best, scores[i + 1])
-            } else {
-                0.0
-            };
-            let centre = (mx - reach + i as isize) as f64 + sub;
-            let v_mid = band as f64 + (SYMMETRY_BAND_ROWS as f64 - 1.0) / 2.0;
-            if best > 0.0 {
-                fits.push((v_mid - mid.y, centre, best));
-            }
-        }
-        band += SYMMETRY_BAND_ROWS as isize;
-    }
-    if fits.len() < 3 {
-        return None;
-    }
-    // Weighted least squares x = x0 + k v, weights = band score squared.
-    let (mut sw, mut sv, mut sx, mut svv, mut svx) = (0.0, 0.0, 0.0, 0.0, 0.0);
-    for &(v, x, s) in &fits {
-        let wgt = s * s;
-        sw += wgt;
-        sv += wgt * v;
-        sx += wgt * x;
-        svv += wgt * v * v;
-        svx += wgt * v * x;
-    }
-    let denom = sw * svv - sv * sv;
-    if denom.abs() < 1e-9 {
-        return None;
-    }
-    let k = (sw * svx - sv * sx) / denom;
-    let mean_score = fits.iter().map(|f| f.2).sum::<f64>() / fits.len() as f64;
-    Some((k, mean_score))
-}
-
-/// Vertex offset of the parabola through three equally spaced samples.
-fn parabola(l: f64, c: f64, r: f64) -> f64 {
-    let d = l - 2.0 * c + r;
-    if d >= -1e-12 {
-        0.0
-    } else {
-        (0.5 * (l - r) / d).clamp(-0.5, 0.5)
     }
 }
 
