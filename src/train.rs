@@ -157,3 +157,118 @@ fn face_patches(
     });
     [cut(right_eye), cut(left_eye), cut(nose)]
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dataset::AnnotatedFace;
+    use crate::filters::{normalize_patch, Correlator};
+    use crate::Point;
+
+    /// A synthetic face: two dark elliptical "eyes" and a darker "nose" on a light background.
+    fn synthetic_face(w: u32, h: u32, re: Point, le: Point, nose: Point) -> image::GrayImage {
+        image::GrayImage::from_fn(w, h, |x, y| {
+            let blob = |c: Point, sx: f64, sy: f64| {
+                let (dx, dy) = ((f64::from(x) - c.x) / sx, (f64::from(y) - c.y) / sy);
+                (-(dx * dx + dy * dy)).exp()
+            };
+            let v = 200.0
+                - 150.0 * blob(re, 5.0, 3.0)
+                - 150.0 * blob(le, 5.0, 3.0)
+                - 120.0 * blob(nose, 4.0, 2.5);
+            image::Luma([v.clamp(0.0, 255.0) as u8])
+        })
+    }
+
+    fn dataset(dir: &std::path::Path, n: usize) -> Vec<AnnotatedFace> {
+        (0..n)
+            .map(|i| {
+                let shift = i as f64 * 0.7;
+                let (re, le) = (
+                    Point::new(60.0 + shift, 70.0),
+                    Point::new(110.0 + shift, 71.0),
+                );
+                let nose = Point::new(85.0 + shift, 108.0);
+                let path = dir.join(format!("face{i:02}.png"));
+                synthetic_face(200, 200, re, le, nose)
+                    .save(&path)
+                    .expect("save");
+                AnnotatedFace {
+                    image: path,
+                    right_eye: re,
+                    left_eye: le,
+                    nose: Some(nose),
+                    mouth: None,
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn trains_filters_that_find_the_eye_and_is_deterministic() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let faces = dataset(dir.path(), 8);
+        let options = TrainOptions {
+            min_eye_distance: 30.0,
+            mirror: true,
+            min_patches: 16,
+        };
+        let (filters, summary) = train_eye_filters(faces.clone(), &options).expect("trained");
+        assert_eq!(summary.faces, 8);
+        assert_eq!(
+            filters.right_eye.training_count, 16,
+            "8 faces and their mirrors"
+        );
+        let (again, _) = train_eye_filters(faces.clone(), &options).expect("trained");
+        assert_eq!(filters.to_bytes(), again.to_bytes());
+
+        // The right-eye filter peaks on a right eye displaced from the crop centre.
+        let f = &faces[0];
+        let gray = image::open(&f.image).expect("open").to_luma8();
+        let face = NormalizedFace::new(&gray, face_box_from_eyes(f.right_eye, f.left_eye));
+        let eye = face.from_image(f.right_eye);
+        let mut patch = vec![0f32; PATCH_SIZE * PATCH_SIZE];
+        face.patch(
+            Point::new(eye.x - 6.0, eye.y + 4.0),
+            PATCH_SIZE,
+            0.0,
+            0.0,
+            &mut patch,
+        );
+        normalize_patch(&mut patch);
+        let peak = Correlator::new(PATCH_SIZE).correlate(&patch, &filters.right_eye, 12, 12);
+        assert!(
+            (peak.dx - 6.0).abs() <= 1.0 && (peak.dy + 4.0).abs() <= 1.0,
+            "{peak:?}"
+        );
+    }
+
+    #[test]
+    fn too_few_patches_and_unreadable_images_are_reported() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let mut faces = dataset(dir.path(), 3);
+        faces[2].image = dir.path().join("missing.png");
+        let small = AnnotatedFace {
+            left_eye: Point::new(faces[0].right_eye.x + 10.0, 70.0),
+            ..faces[0].clone()
+        };
+        faces.push(small);
+        let options = TrainOptions {
+            min_patches: 2,
+            ..Default::default()
+        };
+        let (_, summary) = train_eye_filters(faces.clone(), &options).expect("trained on two");
+        assert_eq!(
+            (summary.faces, summary.too_small, summary.unreadable.len()),
+            (2, 1, 1)
+        );
+        let strict = TrainOptions {
+            min_patches: 1500,
+            ..Default::default()
+        };
+        assert!(matches!(
+            train_eye_filters(faces, &strict),
+            Err(Error::Training(_))
+        ));
+    }
+}
