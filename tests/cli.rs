@@ -270,3 +270,33 @@ fn folders_are_walked_and_out_dir_keeps_the_layout() {
     assert_eq!(json_lines(&res.get_output().stdout).len(), 2);
     assert!(out.join("sub/a.jpeg").exists() && out.join("b.jpeg").exists());
 }
+
+#[test]
+fn canvas_and_region_options_shape_the_output() {
+    let dir = tempfile::tempdir().expect("temp");
+    let img = distorted(dir.path(), 0.3);
+    let (w, h) = image::image_dimensions(&img).expect("dims");
+    let run = |extra: &[&str], name: &str| {
+        let out = dir.path().join(name);
+        unshear()
+            .arg("correct")
+            .arg(&img)
+            .arg("-o")
+            .arg(&out)
+            .args(extra)
+            .assert()
+            .success();
+        image::open(&out).expect("decodes")
+    };
+    let expand = run(&["--canvas", "expand", "--interp", "cubic"], "expand.png");
+    assert_eq!(expand.height(), h);
+    assert!(expand.width() > w + 50, "expanded width {}", expand.width());
+    let crop = run(&["--canvas", "crop"], "crop.png");
+    assert!(crop.width() < w && crop.height() <= h);
+    // Face region: same size; the top-left corner, far outside the face, is untouched.
+    let face = run(&["--region", "face"], "face.png").to_luma8();
+    let original = image::open(&img).expect("decodes").to_luma8();
+    assert_eq!(face.dimensions(), original.dimensions());
+    assert_eq!(face.get_pixel(2, 2), original.get_pixel(2, 2));
+    assert_ne!(face.as_raw(), original.as_raw(), "the face region changed");
+}
