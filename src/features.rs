@@ -15,8 +15,9 @@
 //!
 //! The nose needs one step the paper does not have: under strong shear the nose slides sideways
 //! out of a nostril crop placed for an upright face, so a third filter, trained on the whole
-//! lower nose, first finds the nose in a wide window ([`FeatureLocator::nose_shear`]); the
-//! nostril crops are then cut from the face de-sheared by that first estimate.
+//! lower nose, first finds the nose in a wide window and measures the shear from it, iterating in
+//! the de-sheared face ([`FeatureLocator::iterated_nose_shear`]); the nostril crops are then cut
+//! from the face de-sheared by that estimate.
 //!
 //! Every geometric constant below says its unit (normalised-face pixels, face box 150 px wide, or
 //! eye distances) and how it was chosen.
@@ -56,6 +57,19 @@ pub const NOSE_BELOW_EYES: f64 = 0.76;
 /// Half-size (eye distances) of the nose search window: sideways it must follow the nose under
 /// shear (`k * 0.76` eye distances: 0.45 covers |k| = 0.6), vertically nose length and pitch.
 pub const NOSE_SEARCH: (f64, f64) = (0.45, 0.15);
+/// Sideways half-range (eye distances) of the nose search after the first pass, when the view
+/// is already de-sheared by an estimate: the residual is small, and a narrower window keeps the
+/// peak from jumping to the mouth corners or a cheek.
+pub const NOSE_RESIDUAL_SEARCH: f64 = 0.25;
+/// Most passes of [`FeatureLocator::iterated_nose_shear`]. Each pass costs one 64x64
+/// correlation (about 40 us).
+pub const NOSE_ITERATIONS: usize = 8;
+/// The largest shear the nose iteration will move to. Rolling-shutter skew of a panning camera
+/// rarely exceeds |k| = 0.6; an iteration running past 0.8 has lost the nose, and stopping there
+/// keeps a lost face from producing an absurd estimate.
+pub const MAX_SHEAR: f64 = 0.8;
+/// Change in `k` below which the nose iteration stops.
+pub const NOSE_TOLERANCE: f64 = 0.002;
 
 /// Half-size of the eye search window (pixels of the normalised face). The detector's eye
 /// positions spread by 3.7-5.3 px (1 std) at 150 px; 14 px is about 3 std.
@@ -387,31 +401,41 @@ impl<'f> FeatureLocator<'f> {
         (right, left)
     }
 
-    /// A first shear estimate from the nose: the nose filter's peak, searched widely below the
-    /// eyes, against the eyes' midpoint (a vertical line of the upright face joins them).
-    /// The eyes are given, and the nose returned, in normalised-face coordinates of the face as
-    /// it is (not de-sheared). Returns the estimate and the nose found.
+    /// The shear measured from the nose in the view of the face de-sheared by `k_view` (about
+    /// the eye row): the nose filter's peak against the eyes' midpoint (a vertical line of the
+    /// upright face joins them), added to `k_view`. `wide` searches the whole sideways range
+    /// [`NOSE_SEARCH`]; otherwise the search is limited to [`NOSE_RESIDUAL_SEARCH`].
+    ///
+    /// The eyes are given, and the nose returned, in normalised-face coordinates of the view.
     pub fn nose_shear(
         &mut self,
         face: &NormalizedFace,
         right_eye: Point,
         left_eye: Point,
+        k_view: f64,
+        wide: bool,
     ) -> (f64, Located) {
         let ed = right_eye.distance(left_eye).max(1.0);
         let mid = right_eye.midpoint(left_eye);
         let centre = Point::new(mid.x, mid.y + NOSE_BELOW_EYES * ed);
+        let reach_x = if wide {
+            NOSE_SEARCH.0
+        } else {
+            NOSE_RESIDUAL_SEARCH
+        };
         let window = (
-            (NOSE_SEARCH.0 * ed).round() as usize,
+            (reach_x * ed).round() as usize,
             (NOSE_SEARCH.1 * ed).round() as usize,
         );
         let size = self.filters.size();
-        face.patch(centre, size, 0.0, 0.0, &mut self.patch);
+        face.patch(centre, size, k_view, mid.y, &mut self.patch);
         normalize_patch(&mut self.patch);
         let peak = self
             .correlator
             .correlate(&self.patch, &self.filters.nose, window.0, window.1);
         let nose = Point::new(centre.x + peak.dx, centre.y + peak.dy);
-        let k = (nose.x - mid.x) / (nose.y - mid.y).max(1.0);
+        let k =
+            (k_view + (nose.x - mid.x) / (nose.y - mid.y).max(1.0)).clamp(-MAX_SHEAR, MAX_SHEAR);
         (
             k,
             Located {
@@ -419,6 +443,33 @@ impl<'f> FeatureLocator<'f> {
                 peak,
             },
         )
+    }
+
+    /// The nose's estimate of the shear, iterated: the nose is measured in the face de-sheared
+    /// by the current estimate until the estimate changes by less than [`NOSE_TOLERANCE`] (at
+    /// most [`NOSE_ITERATIONS`] passes).
+    ///
+    /// One pass alone reads only about 70% of the shear: the nose filter matches the whole
+    /// 64x64 patch, whose upper part (the nose bridge, near the eye row) moves less under shear
+    /// than the nose tip, so the peak lands between them. Measured on 250 Caltech faces at
+    /// k = 0.40 with face boxes from the annotated eyes: median 0.289 after one pass. Each pass
+    /// removes most of the remaining shear, so the estimate converges on the truth.
+    pub fn iterated_nose_shear(
+        &mut self,
+        face: &NormalizedFace,
+        right_eye: Point,
+        left_eye: Point,
+    ) -> f64 {
+        let mut k = self.nose_shear(face, right_eye, left_eye, 0.0, true).0;
+        for _ in 1..NOSE_ITERATIONS {
+            let next = self.nose_shear(face, right_eye, left_eye, k, false).0;
+            let done = (next - k).abs() < NOSE_TOLERANCE;
+            k = next;
+            if done {
+                break;
+            }
+        }
+        k
     }
 
     /// Locates both eyes and both nostrils in `face`, looking at the view de-sheared by `k`
@@ -436,7 +487,7 @@ impl<'f> FeatureLocator<'f> {
             None => {
                 let right = self.find(face, exp_right, 0.0, pivot_v, EYE_SEARCH, false);
                 let left = self.find(face, exp_left, 0.0, pivot_v, EYE_SEARCH, true);
-                self.nose_shear(face, right.position, left.position).0
+                self.iterated_nose_shear(face, right.position, left.position)
             }
         };
         let right_eye = self.find(face, exp_right, k, pivot_v, EYE_SEARCH, false);

@@ -25,7 +25,11 @@ pub struct TrainOptions {
     /// than about 1.9x to reach the 150-px face and add blur rather than detail.
     pub min_eye_distance: f64,
     /// Also add each face's mirror image (the mirrored left eye trains the right-eye filter and
-    /// vice versa), doubling the training set.
+    /// vice versa), doubling the training set and making the left-eye filter the mirror image
+    /// of the right-eye one, so that a mirrored face gives (nearly) the opposite shear. On by
+    /// default; measured on the first 150 Caltech faces (eye distance >= 40 px) at k = 0 the
+    /// median absolute error fell from 0.118 to 0.102, and on the 15 Yale faces the estimates
+    /// within 0.05 rose from 36 to 42 of 75.
     pub mirror: bool,
     /// Refuse to write filters made from fewer patches per eye than this (the paper used 1500).
     pub min_patches: u32,
@@ -35,7 +39,7 @@ impl Default for TrainOptions {
     fn default() -> Self {
         Self {
             min_eye_distance: 30.0,
-            mirror: false,
+            mirror: true,
             min_patches: 1500,
         }
     }
