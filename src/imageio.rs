@@ -33,10 +33,39 @@ const MAX_BYTES_PER_PIXEL: u64 = 16;
 /// [`Error::Io`] if the file cannot be opened, [`Error::Image`] if the format is unknown or the
 /// data is corrupt, [`Error::TooLarge`] if the image exceeds `max_pixels`.
 pub fn read_image(path: &Path, max_pixels: u64) -> Result<DynamicImage> {
-    let open = || -> std::io::Result<ImageReader<std::io::BufReader<std::fs::File>>> {
-        ImageReader::open(path)?.with_guessed_format()
-    };
+    // Read whole: the JPEG decoder holds the file in memory anyway, and the truncation check
+    // below needs the bytes.
+    let bytes = std::fs::read(path).map_err(|source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    check_complete(&bytes, path)?;
+    let open = || ImageReader::new(Cursor::new(bytes.as_slice())).with_guessed_format();
     decode(open, max_pixels, path)
+}
+
+/// Rejects a JPEG that stops before its end-of-image marker. The JPEG decoder, like libjpeg,
+/// pads a truncated scan with grey and reports success; a half-transferred camera frame must
+/// instead be reported, not silently measured.
+fn check_complete(bytes: &[u8], path: &Path) -> Result<()> {
+    if !bytes.starts_with(&[0xFF, 0xD8]) {
+        return Ok(());
+    }
+    // The last start-of-scan marker; an end-of-image marker must follow it. (Entropy-coded data
+    // cannot contain FF D9: an FF there is always followed by 00 or a restart marker.)
+    let Some(sos) = bytes.windows(2).rposition(|w| w == [0xFF, 0xDA]) else {
+        return Ok(());
+    };
+    if bytes[sos..].windows(2).any(|w| w == [0xFF, 0xD9]) {
+        return Ok(());
+    }
+    Err(Error::Image {
+        path: path.to_path_buf(),
+        source: image::ImageError::Decoding(image::error::DecodingError::new(
+            image::error::ImageFormatHint::Exact(image::ImageFormat::Jpeg),
+            "truncated JPEG: the data ends before the end-of-image marker",
+        )),
+    })
 }
 
 /// [`read_image`] from bytes in memory (for tests and fuzzing); errors name the path `<memory>`.
@@ -44,6 +73,7 @@ pub fn read_image(path: &Path, max_pixels: u64) -> Result<DynamicImage> {
 /// # Errors
 /// As [`read_image`].
 pub fn read_image_from_memory(bytes: &[u8], max_pixels: u64) -> Result<DynamicImage> {
+    check_complete(bytes, Path::new("<memory>"))?;
     let open = || ImageReader::new(Cursor::new(bytes)).with_guessed_format();
     decode(open, max_pixels, Path::new("<memory>"))
 }
@@ -614,6 +644,22 @@ mod tests {
             }
         }
         !crc
+    }
+
+    #[test]
+    fn truncated_jpeg_is_an_error_but_trailing_data_is_fine() {
+        let img =
+            DynamicImage::ImageRgb8(RgbImage::from_fn(32, 24, |x, y| Rgb([smooth(x, y, 0); 3])));
+        let mut bytes = Vec::new();
+        img.write_to(&mut Cursor::new(&mut bytes), image::ImageFormat::Jpeg)
+            .expect("encode");
+        assert!(read_image_from_memory(&bytes, DEFAULT_MAX_PIXELS).is_ok());
+        let cut = &bytes[..bytes.len() - 10];
+        let err = read_image_from_memory(cut, DEFAULT_MAX_PIXELS).expect_err("truncated");
+        assert!(err.to_string().contains("truncated"), "{err}");
+        let mut trailing = bytes.clone();
+        trailing.extend_from_slice(b"camera trailer");
+        assert!(read_image_from_memory(&trailing, DEFAULT_MAX_PIXELS).is_ok());
     }
 
     #[test]
