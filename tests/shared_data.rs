@@ -14,10 +14,12 @@ fn shared(rel: &str) -> Option<PathBuf> {
     if p.exists() {
         Some(p)
     } else {
-        eprintln!(
-            "skipped: {} not found (../shared is not checked out)",
+        // Written to stderr directly, past the test harness's output capture, so the skip shows.
+        let note = format!(
+            "skipped: {} not found (../shared is not checked out)\n",
             p.display()
         );
+        let _ = std::io::Write::write_all(&mut std::io::stderr(), note.as_bytes());
         None
     }
 }

@@ -466,7 +466,11 @@ mod tests {
         let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("../shared/data/yale-faces/images/subject01.normal.jpeg");
         if !p.exists() {
-            eprintln!("skipped: ../shared not found");
+            // Past the test harness's output capture, so the skip shows.
+            let _ = std::io::Write::write_all(
+                &mut std::io::stderr(),
+                b"skipped: ../shared not found\n",
+            );
             return;
         }
         let img = image::open(&p).expect("decodable fixture");
