@@ -1,11 +1,22 @@
 //! Annotated face data sets: faces with hand-marked eye centres (and, where the set has them,
 //! nose and mouth). The loader is a small trait so other annotation formats can be added.
+//!
+//! Also here: dlib/imglab 68-point landmark XML ([`DlibLandmarks`], for the nostril check) and
+//! identity-labelled sets for recognition ([`celeba_identities`], [`yale_identities`]) with the
+//! paper's gallery/probe split ([`gallery_probe_split`]).
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
-use crate::geometry::Point;
+use crate::geometry::{Point, Rect};
+
+fn read_text(path: &Path) -> Result<String> {
+    std::fs::read_to_string(path).map_err(|source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}
 
 /// One annotated face.
 #[derive(Debug, Clone, PartialEq)]
@@ -104,9 +115,290 @@ pub fn by_image(faces: Vec<AnnotatedFace>) -> Vec<(PathBuf, Vec<AnnotatedFace>)>
     map.into_iter().collect()
 }
 
+/// One face of a 68-point landmark file (iBUG/dlib numbering, 0-based: 36-41 the subject's
+/// right eye (image left), 42-47 the left eye, 31-35 the lower nose with the nostrils near 32
+/// and 34).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LandmarkFace {
+    /// The image file.
+    pub image: PathBuf,
+    /// The annotated face box.
+    pub face_box: Rect,
+    /// The 68 points by index; `None` where the file has no such part.
+    pub points: Vec<Option<Point>>,
+}
+
+impl LandmarkFace {
+    /// Mean of the parts `range` (all must be present).
+    fn centroid(&self, range: std::ops::RangeInclusive<usize>) -> Option<Point> {
+        let n = range.clone().count() as f64;
+        let mut sum = Point::new(0.0, 0.0);
+        for i in range {
+            let p = (*self.points.get(i)?)?;
+            sum = Point::new(sum.x + p.x, sum.y + p.y);
+        }
+        Some(Point::new(sum.x / n, sum.y / n))
+    }
+
+    /// Subject's right eye centre (image left): the mean of points 36-41.
+    pub fn right_eye(&self) -> Option<Point> {
+        self.centroid(36..=41)
+    }
+
+    /// Subject's left eye centre (image right): the mean of points 42-47.
+    pub fn left_eye(&self) -> Option<Point> {
+        self.centroid(42..=47)
+    }
+
+    /// Subject's right nostril (image left): point 32.
+    pub fn right_nostril(&self) -> Option<Point> {
+        self.points.get(32).copied().flatten()
+    }
+
+    /// Subject's left nostril (image right): point 34.
+    pub fn left_nostril(&self) -> Option<Point> {
+        self.points.get(34).copied().flatten()
+    }
+}
+
+/// dlib's imglab XML with 68-point `<part>`s per `<box>` (e.g.
+/// `examples/faces/*_with_face_landmarks.xml`); image names are relative to the XML's folder.
+#[derive(Debug, Clone)]
+pub struct DlibLandmarks {
+    xml: PathBuf,
+}
+
+impl DlibLandmarks {
+    /// The landmark file at `xml`.
+    pub fn new(xml: impl Into<PathBuf>) -> Self {
+        Self { xml: xml.into() }
+    }
+
+    /// Parses imglab XML; `base` is the folder image names are relative to. Boxes marked
+    /// `ignore='1'` are skipped; a malformed number is an error (not silently a zero).
+    pub fn parse(text: &str, base: &Path) -> Result<Vec<LandmarkFace>> {
+        let doc = roxmltree::Document::parse(text)
+            .map_err(|e| Error::Training(format!("landmark XML: {e}")))?;
+        let num = |node: roxmltree::Node, name: &str| -> Result<f64> {
+            node.attribute(name)
+                .and_then(|v| v.trim().parse::<f64>().ok())
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| {
+                    Error::Training(format!(
+                        "landmark XML: <{}> without a valid '{name}'",
+                        node.tag_name().name()
+                    ))
+                })
+        };
+        let mut faces = Vec::new();
+        for image in doc.descendants().filter(|n| n.has_tag_name("image")) {
+            let Some(file) = image.attribute("file") else {
+                return Err(Error::Training(
+                    "landmark XML: <image> without 'file'".into(),
+                ));
+            };
+            for b in image.children().filter(|n| n.has_tag_name("box")) {
+                if b.attribute("ignore") == Some("1") {
+                    continue;
+                }
+                let face_box = Rect::new(
+                    num(b, "left")?,
+                    num(b, "top")?,
+                    num(b, "width")?,
+                    num(b, "height")?,
+                );
+                let mut points = vec![None; 68];
+                for part in b.children().filter(|n| n.has_tag_name("part")) {
+                    let idx = part
+                        .attribute("name")
+                        .and_then(|v| v.trim().parse::<usize>().ok())
+                        .filter(|&i| i < 68);
+                    if let Some(i) = idx {
+                        points[i] = Some(Point::new(num(part, "x")?, num(part, "y")?));
+                    }
+                }
+                faces.push(LandmarkFace {
+                    image: base.join(file),
+                    face_box,
+                    points,
+                });
+            }
+        }
+        Ok(faces)
+    }
+
+    /// Every face of the file.
+    pub fn faces(&self) -> Result<Vec<LandmarkFace>> {
+        let base = self.xml.parent().unwrap_or(Path::new("."));
+        Self::parse(&read_text(&self.xml)?, base)
+    }
+}
+
+/// An image with the identity of the person in it.
+#[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord)]
+pub struct LabelledImage {
+    /// Identity label.
+    pub identity: String,
+    /// The image file.
+    pub image: PathBuf,
+}
+
+/// Parses `identity.txt` lines `<image> <identity>` (CelebA); images relative to `images`.
+pub fn parse_identity_list(text: &str, images: &Path) -> Result<Vec<LabelledImage>> {
+    let mut out = Vec::new();
+    for (n, line) in text.lines().enumerate() {
+        let fields: Vec<&str> = line.split_whitespace().collect();
+        match fields.as_slice() {
+            [] => {}
+            [image, identity] => out.push(LabelledImage {
+                identity: (*identity).to_string(),
+                image: images.join(image),
+            }),
+            _ => {
+                return Err(Error::Training(format!(
+                    "identity list line {}: expected `<image> <identity>`",
+                    n + 1
+                )))
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// The CelebA subset: `root/identity.txt` and `root/images/`.
+pub fn celeba_identities(root: &Path) -> Result<Vec<LabelledImage>> {
+    parse_identity_list(
+        &read_text(&root.join("identity.txt"))?,
+        &root.join("images"),
+    )
+}
+
+/// The Yale faces: `root/images/subjectNN.condition.jpeg`, identity `subjectNN` (the part of the
+/// file name before the first dot). Files without a dot in the name are skipped.
+pub fn yale_identities(root: &Path) -> Result<Vec<LabelledImage>> {
+    let dir = root.join("images");
+    let entries = std::fs::read_dir(&dir).map_err(|source| Error::Io {
+        path: dir.clone(),
+        source,
+    })?;
+    let mut out = Vec::new();
+    for e in entries {
+        let e = e.map_err(|source| Error::Io {
+            path: dir.clone(),
+            source,
+        })?;
+        let name = e.file_name().to_string_lossy().into_owned();
+        if let Some((identity, _)) = name.split_once('.') {
+            out.push(LabelledImage {
+                identity: identity.to_string(),
+                image: e.path(),
+            });
+        }
+    }
+    Ok(out)
+}
+
+/// The paper's protocol: per identity, the first `gallery` images by file name are the gallery,
+/// the rest probes. Returns `(gallery, probes)`, both sorted by identity then file name.
+/// Identities with no probe left still enrol (they are possible wrong answers).
+pub fn gallery_probe_split(
+    mut items: Vec<LabelledImage>,
+    gallery: usize,
+) -> (Vec<LabelledImage>, Vec<LabelledImage>) {
+    items.sort_by(|a, b| {
+        (a.identity.as_str(), a.image.file_name()).cmp(&(b.identity.as_str(), b.image.file_name()))
+    });
+    let (mut g, mut p) = (Vec::new(), Vec::new());
+    let mut seen: BTreeMap<String, usize> = BTreeMap::new();
+    for item in items {
+        let n = seen.entry(item.identity.clone()).or_default();
+        *n += 1;
+        if *n <= gallery {
+            g.push(item);
+        } else {
+            p.push(item);
+        }
+    }
+    (g, p)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn splits_first_three_by_file_name() {
+        let li = |id: &str, f: &str| LabelledImage {
+            identity: id.into(),
+            image: PathBuf::from("x").join(f),
+        };
+        let items = vec![
+            li("a", "5.jpg"),
+            li("a", "1.jpg"),
+            li("b", "9.jpg"),
+            li("a", "3.jpg"),
+            li("a", "2.jpg"),
+            li("a", "4.jpg"),
+        ];
+        let (g, p) = gallery_probe_split(items, 3);
+        let names = |v: &[LabelledImage]| {
+            v.iter()
+                .map(|i| {
+                    format!(
+                        "{}/{}",
+                        i.identity,
+                        i.image.file_name().unwrap().to_string_lossy()
+                    )
+                })
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(names(&g), ["a/1.jpg", "a/2.jpg", "a/3.jpg", "b/9.jpg"]);
+        assert_eq!(names(&p), ["a/4.jpg", "a/5.jpg"]);
+    }
+
+    #[test]
+    fn yale_identity_is_the_name_before_the_first_dot() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let images = dir.path().join("images");
+        std::fs::create_dir(&images).expect("mkdir");
+        for f in ["subject02.sad.jpeg", "subject01.glasses.jpeg", "README"] {
+            std::fs::write(images.join(f), b"").expect("write");
+        }
+        let mut l = yale_identities(dir.path()).expect("listing");
+        l.sort();
+        assert_eq!(l.len(), 2);
+        assert_eq!(l[0].identity, "subject01");
+        assert_eq!(l[1].image, images.join("subject02.sad.jpeg"));
+        assert!(yale_identities(&dir.path().join("missing")).is_err());
+    }
+
+    #[test]
+    fn parses_identity_list_and_rejects_bad_lines() {
+        let l = parse_identity_list("a.jpg 7\n\nb.jpg 8\n", Path::new("img")).expect("valid");
+        assert_eq!(l.len(), 2);
+        assert_eq!(l[1].identity, "8");
+        assert_eq!(l[0].image, Path::new("img/a.jpg"));
+        assert!(parse_identity_list("a.jpg", Path::new(".")).is_err());
+    }
+
+    #[test]
+    fn parses_dlib_landmarks() {
+        let mut parts = String::new();
+        for i in 0..68 {
+            parts.push_str(&format!("<part name='{i:02}' x='{}' y='{}'/>", i, 2 * i));
+        }
+        let xml = format!(
+            "<dataset><images><image file='p.jpg'><box top='1' left='2' width='3' height='4'>{parts}</box><box top='1' left='2' width='3' height='4' ignore='1'/></image></images></dataset>"
+        );
+        let f = DlibLandmarks::parse(&xml, Path::new("d")).expect("valid");
+        assert_eq!(f.len(), 1);
+        assert_eq!(f[0].image, Path::new("d/p.jpg"));
+        assert_eq!(f[0].face_box, Rect::new(2.0, 1.0, 3.0, 4.0));
+        assert_eq!(f[0].right_eye(), Some(Point::new(38.5, 77.0)));
+        assert_eq!(f[0].left_eye(), Some(Point::new(44.5, 89.0)));
+        assert_eq!(f[0].right_nostril(), Some(Point::new(32.0, 64.0)));
+        assert!(DlibLandmarks::parse("<dataset><images><image file='p'><box top='x' left='1' width='1' height='1'/></image></images></dataset>", Path::new(".")).is_err());
+    }
 
     #[test]
     fn parses_caltech_lines() {

@@ -146,9 +146,10 @@ pub struct TrainArgs {
     /// Skip faces whose eye distance is below this many pixels.
     #[arg(long, value_name = "PX", default_value_t = 30.0)]
     pub min_eye_distance: f64,
-    /// Also train on the mirror image of every face.
+    /// Train on the faces as they are only, not also on their mirror images (the default adds
+    /// them, as the built-in filters were trained).
     #[arg(long)]
-    pub mirror: bool,
+    pub no_mirror: bool,
     /// Output filter file.
     #[arg(short = 'o', long = "output", value_name = "PATH")]
     pub output: PathBuf,
@@ -170,6 +171,10 @@ pub struct EvalArgs {
 pub enum EvalCommand {
     /// Shear estimation on annotated faces sheared synthetically, detection included.
     Shear(EvalShearArgs),
+    /// Nostril and eye localisation against 68-point markup (dlib's example faces).
+    Nostrils(EvalNostrilsArgs),
+    /// Rank-1 recognition on undistorted, sheared and corrected probes (the paper's Table I).
+    Recognition(EvalRecognitionArgs),
 }
 
 /// `unshear eval shear`.
@@ -195,6 +200,53 @@ pub struct EvalShearArgs {
     /// Also write every sample as CSV here.
     #[arg(long, value_name = "FILE")]
     pub csv: Option<PathBuf>,
+    /// Write samples.csv, samples.json, summary.md and PNG plots into this folder.
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// Crop each image to this many nominal face boxes around its annotated faces before
+    /// shearing (speed; 0: shear the whole image).
+    #[arg(long, value_name = "F", default_value_t = unshear::eval::shear::DEFAULT_CONTEXT)]
+    pub context: f64,
+    #[command(flatten)]
+    pub model: ModelArgs,
+}
+
+/// `unshear eval nostrils`.
+#[derive(Debug, Args)]
+pub struct EvalNostrilsArgs {
+    /// dlib/imglab landmark XML files (68 points per face).
+    #[arg(
+        long,
+        value_name = "XML",
+        default_values = [
+            "../shared/data/dlib-example-faces/examples/faces/training_with_face_landmarks.xml",
+            "../shared/data/dlib-example-faces/examples/faces/testing_with_face_landmarks.xml",
+        ]
+    )]
+    pub xml: Vec<PathBuf>,
+    /// Enlarge each image by this factor before detection (the example faces are tiny).
+    #[arg(long, value_name = "F", default_value_t = 1.0)]
+    pub upscale: f64,
+    #[command(flatten)]
+    pub model: ModelArgs,
+}
+
+/// `unshear eval recognition`.
+#[derive(Debug, Args)]
+pub struct EvalRecognitionArgs {
+    /// Data-set folder: `identity.txt` + `images/` (CelebA), or `images/subjectNN.cond.*` (Yale).
+    #[arg(long, value_name = "DIR", default_value = "../shared/data/yale-faces")]
+    pub data: PathBuf,
+    /// Shears applied to the probes, comma-separated.
+    #[arg(long, value_name = "K,...", value_delimiter = ',', allow_negative_numbers = true,
+          default_values_t = [0.14, 0.20, 0.33, 0.40])]
+    pub k: Vec<f64>,
+    /// Gallery images per identity (the first by file name); the rest are probes.
+    #[arg(long, value_name = "N", default_value_t = 3)]
+    pub gallery: usize,
+    /// Pool the Gabor magnitudes on a GRID x GRID grid (2: 96 features, the paper's G96).
+    #[arg(long, value_name = "GRID", default_value_t = 2)]
+    pub grid: usize,
     #[command(flatten)]
     pub model: ModelArgs,
 }

@@ -16,8 +16,8 @@ use anyhow::{bail, Context, Result};
 use clap::Parser;
 
 use args::{
-    Cli, Command, CorrectArgs, DistortArgs, EstimateArgs, EvalCommand, EvalShearArgs, ModelArgs,
-    TrainArgs,
+    Cli, Command, CorrectArgs, DistortArgs, EstimateArgs, EvalCommand, EvalNostrilsArgs,
+    EvalRecognitionArgs, EvalShearArgs, ModelArgs, TrainArgs,
 };
 use batch::{collect_inputs, run_ordered, Input};
 use report::JsonLine;
@@ -36,6 +36,8 @@ fn main() -> ExitCode {
         Command::Train(a) => train(a).map(|()| true),
         Command::Eval(e) => match e.what {
             EvalCommand::Shear(a) => eval_shear(a).map(|()| true),
+            EvalCommand::Nostrils(a) => eval_nostrils(a).map(|()| true),
+            EvalCommand::Recognition(a) => eval_recognition(a).map(|()| true),
         },
     };
     match result {
@@ -335,7 +337,7 @@ fn train(a: TrainArgs) -> Result<()> {
         .with_context(|| format!("reading the data set in {}", a.data.display()))?;
     let options = unshear::train::TrainOptions {
         min_eye_distance: a.min_eye_distance,
-        mirror: a.mirror,
+        mirror: !a.no_mirror,
         ..Default::default()
     };
     let (filters, summary) = unshear::train::train_eye_filters(faces, &options)?;
@@ -361,7 +363,7 @@ fn train(a: TrainArgs) -> Result<()> {
         "unshear: trained on {} faces ({} eye patches per eye{}; {} faces below {} px eye distance skipped) -> {}",
         summary.faces,
         filters.right_eye.training_count,
-        if a.mirror { ", mirrored copies included" } else { "" },
+        if a.no_mirror { "" } else { ", mirrored copies included" },
         summary.too_small,
         a.min_eye_distance,
         path.display()
@@ -371,7 +373,7 @@ fn train(a: TrainArgs) -> Result<()> {
 
 fn eval_shear(a: EvalShearArgs) -> Result<()> {
     use unshear::dataset::{CaltechWebFaces, FaceDataset};
-    use unshear::eval::{evaluate_shear, ShearEvalOptions};
+    use unshear::eval::{evaluate_shear_in_context, ShearEvalOptions};
     let unshear = load_models(&a.model)?;
     let mut faces: Vec<_> = CaltechWebFaces::new(&a.data)
         .faces()
@@ -386,15 +388,81 @@ fn eval_shear(a: EvalShearArgs) -> Result<()> {
         shears: a.k.clone(),
         max_pixels: a.model.max_pixels,
     };
-    let bar = indicatif::ProgressBar::new((faces.len() * a.k.len()) as u64);
-    if !std::io::IsTerminal::is_terminal(&std::io::stderr()) {
-        bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
-    }
-    let result = evaluate_shear(&unshear, &faces, &options, || bar.inc(1));
+    let bar = progress_bar((faces.len() * a.k.len()) as u64);
+    let result = evaluate_shear_in_context(&unshear, &faces, &options, a.context, || bar.inc(1));
     bar.finish_and_clear();
+    for u in &result.unreadable {
+        eprintln!("unshear: skipped {u}");
+    }
     print!("{}", result.markdown());
     if let Some(csv) = &a.csv {
         std::fs::write(csv, result.csv()).with_context(|| format!("writing {}", csv.display()))?;
     }
+    if let Some(dir) = &a.out {
+        result
+            .write_outputs(dir)
+            .with_context(|| format!("writing the report into {}", dir.display()))?;
+    }
+    Ok(())
+}
+
+/// A progress bar on stderr, hidden when stderr is not a terminal.
+fn progress_bar(len: u64) -> indicatif::ProgressBar {
+    let bar = indicatif::ProgressBar::new(len);
+    if !std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+        bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
+    }
+    bar
+}
+
+fn eval_nostrils(a: EvalNostrilsArgs) -> Result<()> {
+    use unshear::dataset::DlibLandmarks;
+    if !(a.upscale.is_finite() && a.upscale > 0.0 && a.upscale <= 8.0) {
+        usage_error("--upscale must be a number in (0, 8]");
+    }
+    let unshear = load_models(&a.model)?;
+    let mut faces = Vec::new();
+    for xml in &a.xml {
+        faces.extend(
+            DlibLandmarks::new(xml)
+                .faces()
+                .with_context(|| format!("reading {}", xml.display()))?,
+        );
+    }
+    let result =
+        unshear::eval::nostrils::evaluate_nostrils(&unshear, &faces, a.upscale, a.model.max_pixels);
+    for u in &result.unreadable {
+        eprintln!("unshear: skipped {u}");
+    }
+    print!("{}", result.markdown());
+    Ok(())
+}
+
+fn eval_recognition(a: EvalRecognitionArgs) -> Result<()> {
+    use unshear::dataset::{celeba_identities, yale_identities};
+    use unshear::eval::recognition::{evaluate_recognition, RecognitionOptions};
+    if a.gallery == 0 || a.grid == 0 || a.grid > 8 || a.k.iter().any(|k| !k.is_finite()) {
+        usage_error("--gallery must be >= 1, --grid in 1..=8 and every --k finite");
+    }
+    let unshear = load_models(&a.model)?;
+    let items = if a.data.join("identity.txt").is_file() {
+        celeba_identities(&a.data)
+    } else {
+        yale_identities(&a.data)
+    }
+    .with_context(|| format!("reading the data set in {}", a.data.display()))?;
+    let options = RecognitionOptions {
+        shears: a.k.clone(),
+        gallery: a.gallery,
+        grid: a.grid,
+        max_pixels: a.model.max_pixels,
+    };
+    let bar = progress_bar(items.len() as u64);
+    let result = evaluate_recognition(&unshear, items, &options, || bar.inc(1));
+    bar.finish_and_clear();
+    for u in &result.unreadable {
+        eprintln!("unshear: skipped {u}");
+    }
+    print!("{}", result.markdown(&a.data.display().to_string()));
     Ok(())
 }
