@@ -45,6 +45,25 @@ fn check_bad(bad: &Path) -> String {
     message
 }
 
+/// Runs `estimate --json` on `paths`, expects success (within a minute: a walk that loops
+/// would not end), and returns the JSON lines.
+fn estimate_ok(paths: &[&Path]) -> Vec<serde_json::Value> {
+    let out = Command::cargo_bin("unshear")
+        .expect("binary")
+        .args(["estimate", "--json"])
+        .args(paths)
+        .timeout(std::time::Duration::from_secs(60))
+        .assert()
+        .success()
+        .get_output()
+        .stdout
+        .clone();
+    String::from_utf8_lossy(&out)
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("JSON line"))
+        .collect()
+}
+
 fn good_jpeg_bytes() -> Vec<u8> {
     std::fs::read(fixture()).expect("fixture")
 }
@@ -121,19 +140,7 @@ fn tiny_and_unusual_images_are_handled() {
     image::DynamicImage::ImageRgb16(image::open(fixture()).expect("fixture").to_rgb16())
         .save(&sixteen)
         .expect("save");
-    let out = Command::cargo_bin("unshear")
-        .expect("binary")
-        .args(["estimate", "--json"])
-        .args([&one, &narrow, &grey_alpha, &sixteen])
-        .assert()
-        .success()
-        .get_output()
-        .stdout
-        .clone();
-    let lines: Vec<serde_json::Value> = String::from_utf8_lossy(&out)
-        .lines()
-        .map(|l| serde_json::from_str(l).expect("JSON"))
-        .collect();
+    let lines = estimate_ok(&[&one, &narrow, &grey_alpha, &sixteen]);
     assert!(
         lines[0]["k"].is_null() && lines[1]["k"].is_null(),
         "no face in 1x1 / 1x500"
@@ -178,20 +185,7 @@ fn unreadable_files_symlink_loops_and_non_utf8_names() {
     // A file whose name is not UTF-8.
     let odd = root.join(std::ffi::OsStr::from_bytes(b"caf\xe9.jpeg"));
     std::fs::copy(fixture(), &odd).expect("copy");
-    let out = Command::cargo_bin("unshear")
-        .expect("binary")
-        .args(["estimate", "--json"])
-        .arg(&root)
-        .timeout(std::time::Duration::from_secs(60))
-        .assert()
-        .success()
-        .get_output()
-        .stdout
-        .clone();
-    let lines: Vec<serde_json::Value> = String::from_utf8_lossy(&out)
-        .lines()
-        .map(|l| serde_json::from_str(l).expect("JSON"))
-        .collect();
+    let lines = estimate_ok(&[&root]);
     assert_eq!(lines.len(), 2, "both images, once each");
     assert!(lines.iter().all(|l| l["k"].is_f64()));
 }
