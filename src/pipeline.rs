@@ -176,10 +176,9 @@ impl Unshear {
     /// [`Self::estimate`] on a greyscale image.
     pub fn estimate_gray(&self, gray: &GrayImage) -> ImageReport {
         let faces: Vec<FaceReport> = self
-            .detector
-            .detect(gray)
+            .detect_and_estimate(gray)
             .into_iter()
-            .filter_map(|b| self.estimate_face(gray, b))
+            .filter_map(|(_, face)| face)
             .collect();
         ImageReport {
             k: median(faces.iter().map(|f| f.k).collect()),
@@ -187,6 +186,16 @@ impl Unshear {
             width: gray.width(),
             height: gray.height(),
         }
+    }
+
+    /// Every detected face box with its estimate, if it gave one (the evaluation needs to tell a
+    /// face that was not found from one that was found but gave no estimate).
+    pub fn detect_and_estimate(&self, gray: &GrayImage) -> Vec<(Rect, Option<FaceReport>)> {
+        self.detector
+            .detect(gray)
+            .into_iter()
+            .map(|b| (b, self.estimate_face(gray, b)))
+            .collect()
     }
 
     /// Locates the features in one face box and estimates its shear; `None` when the points do

@@ -2,32 +2,12 @@
 //! evaluations run end to end on the development data when `../shared/data` exists (each such
 //! test prints "skipped: ..." and passes when it does not).
 
-use std::path::PathBuf;
-
 use assert_cmd::Command;
 use unshear::warp::{try_apply_shear, Canvas, Interpolation};
 use unshear::{imageio, Shear};
 
-fn fixture(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/fixtures/faces")
-        .join(name)
-}
-
-fn shared(rel: &str) -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data")
-        .join(rel);
-    if p.exists() {
-        Some(p)
-    } else {
-        eprintln!(
-            "skipped: {} not found (../shared is not checked out)",
-            p.display()
-        );
-        None
-    }
-}
+mod common;
+use common::{fixture, shared_data as shared};
 
 fn unshear() -> Command {
     Command::cargo_bin("unshear").expect("binary built")

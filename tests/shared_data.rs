@@ -7,22 +7,8 @@ use unshear::dataset::{CaltechWebFaces, FaceDataset};
 use unshear::eval::{evaluate_shear, ShearEvalOptions};
 use unshear::Unshear;
 
-fn shared(rel: &str) -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data")
-        .join(rel);
-    if p.exists() {
-        Some(p)
-    } else {
-        // Written to stderr directly, past the test harness's output capture, so the skip shows.
-        let note = format!(
-            "skipped: {} not found (../shared is not checked out)\n",
-            p.display()
-        );
-        let _ = std::io::Write::write_all(&mut std::io::stderr(), note.as_bytes());
-        None
-    }
-}
+mod common;
+use common::shared_data as shared;
 
 /// `unshear train` is deterministic and the committed filters are what it makes.
 #[test]

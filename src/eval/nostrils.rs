@@ -78,8 +78,8 @@ pub fn evaluate_nostrils(
             } else {
                 img
             };
-            let report = unshear.estimate(&img);
-            let boxes = unshear.detector().detect(&Unshear::gray(&img));
+            // One detection per image: the boxes, each with its estimate if it gave one.
+            let found = unshear.detect_and_estimate(&Unshear::gray(&img));
             // Map an original-image point into the enlarged image (pixel centres at integers).
             let up =
                 |p: Point| Point::new((p.x + 0.5) * upscale - 0.5, (p.y + 0.5) * upscale - 0.5);
@@ -90,10 +90,12 @@ pub fn evaluate_nostrils(
                     let (rn, ln) = (f.right_nostril()?, f.left_nostril()?);
                     let (ure, ule) = (up(re), up(le));
                     let ed = re.distance(le) * upscale;
-                    let detected = boxes.iter().any(|b| b.contains(ure) && b.contains(ule));
-                    let hit = report
-                        .faces
+                    let detected = found
                         .iter()
+                        .any(|(b, _)| b.contains(ure) && b.contains(ule));
+                    let hit = found
+                        .iter()
+                        .filter_map(|(_, face)| face.as_ref())
                         .find(|d| d.face_box.contains(ure) && d.face_box.contains(ule));
                     Some(NostrilSample {
                         image: path.display().to_string(),

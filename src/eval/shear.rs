@@ -165,15 +165,9 @@ fn run_one(
     let (sheared, placement) = try_apply_shear(img, shear, Interpolation::Linear, Canvas::Expand)
         .map_err(|e| format!("{}: {e}", path.display()))?;
     let start = Instant::now();
-    // Detection and estimation separately (what `Unshear::estimate_gray` does inside), so a face
-    // that is detected but yields no estimate still counts as detected.
-    let gray = Unshear::gray(&sheared);
-    let found: Vec<_> = unshear
-        .detector()
-        .detect(&gray)
-        .into_iter()
-        .map(|b| (b, unshear.estimate_face(&gray, b)))
-        .collect();
+    // Boxes with their estimates, so a face that is detected but yields no estimate still counts
+    // as detected.
+    let found = unshear.detect_and_estimate(&Unshear::gray(&sheared));
     let millis = start.elapsed().as_secs_f64() * 1e3;
     let moved =
         |p: Point| placement.from_frame(shear.apply(Point::new(p.x - origin.x, p.y - origin.y)));

@@ -1,0 +1,30 @@
+//! Helpers shared by the integration tests.
+
+use std::path::PathBuf;
+
+/// A committed fixture face (tests/fixtures/faces, see SOURCE.md there).
+#[allow(dead_code)] // Not every test file uses every helper.
+pub fn fixture(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/fixtures/faces")
+        .join(name)
+}
+
+/// `../shared/data/<rel>` if it exists; otherwise notes the skip and returns `None`.
+#[allow(dead_code)]
+pub fn shared_data(rel: &str) -> Option<PathBuf> {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data")
+        .join(rel);
+    if p.exists() {
+        Some(p)
+    } else {
+        // Written to stderr directly, past the test harness's output capture, so the skip shows.
+        let note = format!(
+            "skipped: {} not found (../shared is not checked out)\n",
+            p.display()
+        );
+        let _ = std::io::Write::write_all(&mut std::io::stderr(), note.as_bytes());
+        None
+    }
+}
