@@ -24,8 +24,10 @@ use serde::Serialize;
 use crate::annotate::FaceMarks;
 use crate::detect::FaceDetector;
 use crate::error::{Error, Result};
-use crate::estimate::shear_from_sides;
-use crate::features::{FacePoints, FeatureLocator, NormalizedFace};
+use crate::estimate::{estimate_face, FeatureGeometry, ShearModel};
+use crate::features::{
+    FacePoints, FeatureLocator, NormalizedFace, LEFT_EYE_IN_BOX, RIGHT_EYE_IN_BOX,
+};
 use crate::filters::{Correlator, EyeFilters};
 use crate::geometry::{Point, Rect, Shear};
 use crate::warp::{self, Canvas, Interpolation};
@@ -34,6 +36,26 @@ use crate::warp::{self, Canvas, Interpolation};
 /// that `--region face` corrects: the box covers brows to chin; the margin takes in the hair and
 /// jaw line, and the feathered edge of the warp lies outside the face.
 pub const FACE_REGION_MARGIN: f64 = 0.3;
+
+/// Shears tried, in turn, when the detector finds no face in the image as it is: the image is
+/// de-sheared by each and searched again. The frontal-face cascade tolerates about |k| = 0.15
+/// (detection falls from 92% unsheared to 89% at 0.20 and 68-74% at 0.40 on the Caltech
+/// development faces); hypotheses at +-0.3 leave at most 0.1 of residual shear for any
+/// |k| <= 0.4, and 0.15 up to 0.45. Costs nothing on images where a face is found at once, and
+/// one more detection per hypothesis (on a canvas about `0.3 * height` wider) where none is.
+pub const DEFAULT_SHEAR_HYPOTHESES: [f64; 2] = [0.3, -0.3];
+
+/// A detected face.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Detection {
+    /// The face box in input-image pixels: where the detector's box lies in the de-sheared view,
+    /// moved back so that its eye row is where the face's eyes are in the input.
+    pub face_box: Rect,
+    /// The shear the view was de-sheared by when the face was found (0: the image as it is).
+    pub view_k: f64,
+    /// The detector's neighbour count (raw hits merged into the box; more is surer).
+    pub neighbors: u32,
+}
 
 /// Default number of refinement passes (see [`Unshear::set_refinements`]).
 pub const DEFAULT_REFINEMENTS: usize = 0;
@@ -51,16 +73,25 @@ pub struct FaceReport {
     pub right_nostril: Point,
     /// Subject's left nostril (image right).
     pub left_nostril: Point,
-    /// The shear estimated from this face (equation 5, both sides averaged).
-    pub k: f64,
-    /// The weakest of the four correlation peaks' peak-to-sidelobe ratios (eyes and nostrils):
-    /// a face is only as trustworthy as its least certain feature. Measured on Caltech web
-    /// faces, eye peaks reach PSRs of about 2 to 15 and nostril peaks (found with an eye filter)
-    /// 1 to 4, so this is usually the nostrils' value; below about 1.5 a feature barely stands out
-    /// from the correlation background.
+    /// The mouth centre, when the filters have a mouth filter.
+    pub mouth: Option<Point>,
+    /// The shear estimated from this face, `None` when the estimate was refused for a
+    /// confidence below the corrector's threshold ([`Unshear::set_min_confidence`]).
+    pub k: Option<f64>,
+    /// The shear measured, whether or not it was refused.
+    pub k_measured: f64,
+    /// The nose axis's own estimate (shear-and-roll model), if usable.
+    pub k_nose: Option<f64>,
+    /// The mouth axis's own estimate (shear-and-roll model), if usable.
+    pub k_mouth: Option<f64>,
+    /// The head's roll under that shear, degrees (positive: the subject's left eye, on the image
+    /// right, lower); 0 with [`ShearModel::Equation5`].
+    pub roll_degrees: f64,
+    /// How far the estimate can be trusted, from 0 to 1 (see [`confidence`]).
     pub confidence: f64,
-    /// Peak-to-sidelobe ratios of right eye, left eye, right nostril, left nostril.
-    pub psr: [f64; 4],
+    /// Peak-to-sidelobe ratios of right eye, left eye, right nostril, left nostril and mouth
+    /// (0 without a mouth filter).
+    pub psr: [f64; 5],
 }
 
 /// What was found in one image.
@@ -87,7 +118,7 @@ impl ImageReport {
                 left_eye: f.left_eye,
                 right_nostril: f.right_nostril,
                 left_nostril: f.left_nostril,
-                k: Some(f.k),
+                k: f.k,
             })
             .collect()
     }
@@ -122,6 +153,9 @@ pub struct Unshear {
     detector: FaceDetector,
     filters: EyeFilters,
     refinements: usize,
+    model: ShearModel,
+    min_confidence: f64,
+    shear_hypotheses: Vec<f64>,
 }
 
 thread_local! {
@@ -136,7 +170,105 @@ impl Unshear {
             detector,
             filters,
             refinements: DEFAULT_REFINEMENTS,
+            model: ShearModel::default(),
+            min_confidence: DEFAULT_MIN_CONFIDENCE,
+            shear_hypotheses: DEFAULT_SHEAR_HYPOTHESES.to_vec(),
         }
+    }
+
+    /// Sets the shears tried when no face is found in the image as it is (see
+    /// [`DEFAULT_SHEAR_HYPOTHESES`]); empty: the paper's single detection pass. Non-finite values
+    /// are ignored.
+    pub fn set_shear_hypotheses(&mut self, hypotheses: &[f64]) {
+        self.shear_hypotheses = hypotheses.iter().copied().filter(|k| k.is_finite()).collect();
+    }
+
+    /// Detects the faces in `gray`: first in the image as it is; when that finds none, in the
+    /// image de-sheared by each of the shear hypotheses, keeping the strongest of overlapping
+    /// detections.
+    pub fn detect(&self, gray: &GrayImage) -> Vec<Detection> {
+        let as_is: Vec<Detection> = self
+            .detector
+            .detect_with_neighbors(gray)
+            .into_iter()
+            .map(|(face_box, neighbors)| Detection {
+                face_box,
+                view_k: 0.0,
+                neighbors,
+            })
+            .collect();
+        if !as_is.is_empty() || self.shear_hypotheses.is_empty() {
+            return as_is;
+        }
+        let mut found: Vec<Detection> = self
+            .shear_hypotheses
+            .iter()
+            .flat_map(|&k| self.detect_desheared(gray, k))
+            .collect();
+        // Strongest first, then the smaller hypothesis; keep those not overlapping a kept one.
+        found.sort_by(|a, b| {
+            b.neighbors
+                .cmp(&a.neighbors)
+                .then(a.view_k.abs().total_cmp(&b.view_k.abs()))
+        });
+        let mut kept: Vec<Detection> = Vec::new();
+        for d in found {
+            if kept.iter().all(|k| k.face_box.iou(&d.face_box) < 0.3) {
+                kept.push(d);
+            }
+        }
+        kept
+    }
+
+    /// Detections in `gray` de-sheared by `k` about its middle row, moved back to `gray`.
+    fn detect_desheared(&self, gray: &GrayImage, k: f64) -> Vec<Detection> {
+        let shear = Shear::about_middle(k, gray.height());
+        let view = DynamicImage::ImageLuma8(gray.clone());
+        let Ok((view, placement)) =
+            warp::try_remove_shear(&view, shear, Interpolation::Linear, Canvas::Expand)
+        else {
+            return Vec::new();
+        };
+        let view = view.into_luma8();
+        self.detector
+            .detect_with_neighbors(&view)
+            .into_iter()
+            .map(|(b, neighbors)| {
+                // The eye row's midpoint, from the de-sheared view back to the input; the box
+                // keeps its size and is placed around it as the detector placed it.
+                let eyes_in_box = (
+                    (RIGHT_EYE_IN_BOX.0 + LEFT_EYE_IN_BOX.0) / 2.0,
+                    (RIGHT_EYE_IN_BOX.1 + LEFT_EYE_IN_BOX.1) / 2.0,
+                );
+                let eyes = placement.to_frame(Point::new(
+                    b.x + eyes_in_box.0 * b.width,
+                    b.y + eyes_in_box.1 * b.height,
+                ));
+                let eyes = shear.apply(eyes);
+                Detection {
+                    face_box: Rect::new(
+                        eyes.x - eyes_in_box.0 * b.width,
+                        eyes.y - eyes_in_box.1 * b.height,
+                        b.width,
+                        b.height,
+                    ),
+                    view_k: k,
+                    neighbors,
+                }
+            })
+            .collect()
+    }
+
+    /// Sets the formula that turns the located points into `k` (default
+    /// [`ShearModel::ShearRollYaw`]).
+    pub fn set_model(&mut self, model: ShearModel) {
+        self.model = model;
+    }
+
+    /// Sets the confidence below which a face's estimate is refused (`k: None`, and the face does
+    /// not count towards the image's shear). 0 accepts every estimate.
+    pub fn set_min_confidence(&mut self, min_confidence: f64) {
+        self.min_confidence = min_confidence;
     }
 
     /// Sets how many times the features are located again in the face de-sheared by the
@@ -181,7 +313,7 @@ impl Unshear {
             .filter_map(|(_, face)| face)
             .collect();
         ImageReport {
-            k: median(faces.iter().map(|f| f.k).collect()),
+            k: combined_shear(&faces),
             faces,
             width: gray.width(),
             height: gray.height(),
@@ -191,16 +323,30 @@ impl Unshear {
     /// Every detected face box with its estimate, if it gave one (the evaluation needs to tell a
     /// face that was not found from one that was found but gave no estimate).
     pub fn detect_and_estimate(&self, gray: &GrayImage) -> Vec<(Rect, Option<FaceReport>)> {
-        self.detector
-            .detect(gray)
+        self.detect(gray)
             .into_iter()
-            .map(|b| (b, self.estimate_face(gray, b)))
+            .map(|d| (d.face_box, self.estimate_detection(gray, &d)))
             .collect()
+    }
+
+    /// Locates the features in one detected face, starting from the view its detection was made
+    /// in, and estimates its shear.
+    pub fn estimate_detection(&self, gray: &GrayImage, detection: &Detection) -> Option<FaceReport> {
+        self.estimate_face_from(gray, detection.face_box, detection.view_k)
     }
 
     /// Locates the features in one face box and estimates its shear; `None` when the points do
     /// not allow an estimate (the nose not below the eyes).
     pub fn estimate_face(&self, gray: &GrayImage, face_box: Rect) -> Option<FaceReport> {
+        self.estimate_face_from(gray, face_box, 0.0)
+    }
+
+    fn estimate_face_from(
+        &self,
+        gray: &GrayImage,
+        face_box: Rect,
+        start_k: f64,
+    ) -> Option<FaceReport> {
         let positive = |v: f64| v > 0.0 && v.is_finite();
         if gray.width() == 0
             || gray.height() == 0
@@ -218,26 +364,39 @@ impl Unshear {
                 _ => Correlator::new(size),
             };
             let mut locator = FeatureLocator::with_correlator(&self.filters, correlator);
-            let mut points = locator.locate(&face, None);
+            let mut points = locator.locate_from(&face, start_k);
             for _ in 0..self.refinements {
-                match points_shear(&points) {
-                    Some(k) => points = locator.locate(&face, Some(k)),
+                match estimate_face(&geometry(&points), self.model) {
+                    Some(e) => points = locator.locate(&face, Some(e.k)),
                     None => break,
                 }
             }
             *slot = Some(locator.into_correlator());
             points
         });
-        let k = points_shear(&points)?;
+        let estimate = estimate_face(&geometry(&points), self.model)?;
+        let psr = [
+            points.psr[0],
+            points.psr[1],
+            points.psr[2],
+            points.psr[3],
+            points.mouth_psr,
+        ];
+        let confidence = confidence(&points, &estimate);
         Some(FaceReport {
             face_box,
             right_eye: points.right_eye,
             left_eye: points.left_eye,
             right_nostril: points.right_nostril,
             left_nostril: points.left_nostril,
-            k,
-            confidence: points.psr.iter().copied().fold(f64::INFINITY, f64::min),
-            psr: points.psr,
+            mouth: points.mouth,
+            k: (confidence >= self.min_confidence).then_some(estimate.k),
+            k_measured: estimate.k,
+            k_nose: estimate.k_nose,
+            k_mouth: estimate.k_mouth,
+            roll_degrees: estimate.roll.to_degrees(),
+            confidence,
+            psr,
         })
     }
 
@@ -274,7 +433,9 @@ impl Unshear {
                 }
                 let mut out = img.clone();
                 for face in &report.faces {
-                    let k = options.k.unwrap_or(face.k);
+                    let Some(k) = options.k.or(face.k) else {
+                        continue;
+                    };
                     let b = face.face_box;
                     let region = Rect::new(
                         b.x - FACE_REGION_MARGIN * b.width,
@@ -291,14 +452,30 @@ impl Unshear {
     }
 }
 
-/// Equation 5 on located points.
-fn points_shear(p: &FacePoints) -> Option<f64> {
-    shear_from_sides(
-        p.right_eye_point,
-        p.right_nose_point,
-        p.left_eye_point,
-        p.left_nose_point,
-    )
+/// The points the estimators use.
+fn geometry(p: &FacePoints) -> FeatureGeometry {
+    FeatureGeometry {
+        right_eye: p.right_eye,
+        left_eye: p.left_eye,
+        right_pair: (p.right_eye_point, p.right_nose_point),
+        left_pair: (p.left_eye_point, p.left_nose_point),
+        nose: p.right_nostril.midpoint(p.left_nostril),
+        mouth: p.mouth,
+    }
+}
+
+/// Default for [`Unshear::set_min_confidence`].
+pub const DEFAULT_MIN_CONFIDENCE: f64 = 0.0;
+
+/// A face's confidence, 0 to 1.
+pub fn confidence(points: &FacePoints, _estimate: &crate::estimate::FaceEstimate) -> f64 {
+    let weakest = points.psr.iter().copied().fold(f64::INFINITY, f64::min);
+    (weakest / 4.0).clamp(0.0, 1.0)
+}
+
+/// The image's shear from its faces' accepted estimates: the median.
+fn combined_shear(faces: &[FaceReport]) -> Option<f64> {
+    median(faces.iter().filter_map(|f| f.k).collect())
 }
 
 /// Median of finite values (mean of the middle two for an even count); `None` when empty.

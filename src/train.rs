@@ -1,8 +1,9 @@
 //! Training the eye filters (`unshear train`): from faces with annotated eye centres, each face is
 //! normalised to 150 px wide through the face box the detector would draw for those eyes
 //! ([`crate::features::face_box_from_eyes`]), a `64 x 64` patch is cut centred on each eye, and
-//! one UMACE filter is synthesised per eye ([`crate::filters::UmaceTrainer`]), and one for the nose
-//! from patches centred on the annotated nose point.
+//! one UMACE filter is synthesised per eye ([`crate::filters::UmaceTrainer`]), one for the nose
+//! from patches centred on the annotated nose point, and one for the mouth from patches centred
+//! on the annotated mouth centre.
 //!
 //! Deterministic: images are decoded in parallel but patches are added in data-set order, so
 //! the same data gives the same filter file, byte for byte.
@@ -11,7 +12,9 @@ use rayon::prelude::*;
 
 use crate::dataset::{by_image, AnnotatedFace};
 use crate::error::{Error, Result};
-use crate::features::{face_box_from_eyes, NormalizedFace, FACE_WIDTH, NOSTRIL_FROM_EYE};
+use crate::features::{
+    face_box_from_eyes, NormalizedFace, FACE_WIDTH, MOUTH_BELOW_EYES, NOSE_BELOW_EYES,
+};
 use crate::filters::{EyeFilters, UmaceTrainer};
 use crate::imageio;
 
@@ -72,7 +75,7 @@ pub fn train_eye_filters(
         .collect();
     let groups = by_image(usable);
     // Decode and cut in parallel; the order of `groups` is kept by collect.
-    let cut: Vec<Result<Vec<[Vec<f32>; 3]>, String>> = groups
+    let cut: Vec<Result<Vec<[Vec<f32>; 4]>, String>> = groups
         .par_iter()
         .map(|(path, faces)| {
             let img = imageio::read_image(path, imageio::DEFAULT_MAX_PIXELS)
@@ -83,7 +86,7 @@ pub fn train_eye_filters(
                 .then(|| image::imageops::flip_horizontal(&gray));
             let mut patches = Vec::new();
             for f in faces {
-                patches.push(face_patches(&gray, f.right_eye, f.left_eye, f.nose));
+                patches.push(face_patches(&gray, f.right_eye, f.left_eye, f.nose, f.mouth));
                 if let Some(m) = &mirrored {
                     // In the mirror the subject's left eye appears on the image left.
                     let w = f64::from(gray.width()) - 1.0;
@@ -93,6 +96,7 @@ pub fn train_eye_filters(
                         flip(f.left_eye),
                         flip(f.right_eye),
                         f.nose.map(flip),
+                        f.mouth.map(flip),
                     ));
                 }
             }
@@ -102,14 +106,16 @@ pub fn train_eye_filters(
     let mut right = UmaceTrainer::new(PATCH_SIZE);
     let mut left = UmaceTrainer::new(PATCH_SIZE);
     let mut nose = UmaceTrainer::new(PATCH_SIZE);
+    let mut mouth = UmaceTrainer::new(PATCH_SIZE);
     for ((path, faces), result) in groups.iter().zip(cut) {
         match result {
             Ok(patches) => {
                 summary.faces += faces.len();
-                for [r, l, n] in patches {
+                for [r, l, n, m] in patches {
                     right.add(&r);
                     left.add(&l);
                     nose.add(&n);
+                    mouth.add(&m);
                 }
             }
             Err(e) => summary.unreadable.push(format!("{}: {e}", path.display())),
@@ -132,20 +138,26 @@ pub fn train_eye_filters(
         nose: nose
             .finish()
             .ok_or_else(|| Error::Training("no nose patches".into()))?,
+        mouth: Some(
+            mouth
+                .finish()
+                .ok_or_else(|| Error::Training("no mouth patches".into()))?,
+        ),
         face_width: FACE_WIDTH as u32,
     };
     Ok((filters, summary))
 }
 
 /// The `PATCH_SIZE` patches of one face, each centred exactly on its annotated point: right
-/// eye, left eye and nose. A face without a nose annotation gets its nose patch from where the
-/// nose usually is (0.74 eye distances below the eyes' midpoint).
+/// eye, left eye, nose and mouth. A face without a nose or mouth annotation gets that patch
+/// from where it usually is ([`NOSE_BELOW_EYES`], [`MOUTH_BELOW_EYES`] below the eyes' midpoint).
 fn face_patches(
     gray: &image::GrayImage,
     right_eye: crate::Point,
     left_eye: crate::Point,
     nose: Option<crate::Point>,
-) -> [Vec<f32>; 3] {
+    mouth: Option<crate::Point>,
+) -> [Vec<f32>; 4] {
     let face = NormalizedFace::new(gray, face_box_from_eyes(right_eye, left_eye));
     let cut = |p| {
         let mut patch = vec![0f32; PATCH_SIZE * PATCH_SIZE];
@@ -153,13 +165,10 @@ fn face_patches(
         patch
     };
     let mid = right_eye.midpoint(left_eye);
-    let nose = nose.unwrap_or_else(|| {
-        crate::Point::new(
-            mid.x,
-            mid.y + NOSTRIL_FROM_EYE.1 * right_eye.distance(left_eye),
-        )
-    });
-    [cut(right_eye), cut(left_eye), cut(nose)]
+    let below = |d: f64| crate::Point::new(mid.x, mid.y + d * right_eye.distance(left_eye));
+    let nose = nose.unwrap_or_else(|| below(NOSE_BELOW_EYES));
+    let mouth = mouth.unwrap_or_else(|| below(MOUTH_BELOW_EYES));
+    [cut(right_eye), cut(left_eye), cut(nose), cut(mouth)]
 }
 
 #[cfg(test)]

@@ -44,7 +44,7 @@ pub struct ShearEvalOptions {
 }
 
 /// One face under one shear.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize)]
 pub struct ShearSample {
     /// The image.
     pub image: String,
@@ -56,9 +56,23 @@ pub struct ShearSample {
     pub eye_distance: f64,
     /// A detected box contained both true eyes.
     pub detected: bool,
-    /// The estimate for that face, if any (a detected face may still give none, when the located
-    /// nose is not below the eyes).
+    /// The accepted estimate for that face, if any (a detected face may give none: the located
+    /// points are unusable, or the estimate was refused for low confidence).
     pub estimate: Option<f64>,
+    /// The estimate measured, accepted or refused.
+    pub measured: Option<f64>,
+    /// The face's confidence (0 to 1), when it was found.
+    pub confidence: Option<f64>,
+    /// The face's roll under the estimated shear, degrees.
+    pub roll_degrees: Option<f64>,
+    /// The nose axis's and the mouth axis's own estimates.
+    pub k_nose: Option<f64>,
+    /// See `k_nose`.
+    pub k_mouth: Option<f64>,
+    /// Peak-to-sidelobe ratios (eyes, nostrils, mouth), when the face was found.
+    pub psr: Option<[f64; 5]>,
+    /// Located eye distance over the face box width, when the face was found.
+    pub eye_box_ratio: Option<f64>,
     /// Worst of the two eyes' localisation errors, as a fraction of the eye distance.
     pub eye_error: Option<f64>,
     /// The same formula on the annotated points (eye midpoint over the nose point): what
@@ -191,7 +205,15 @@ fn run_one(
                 true_k: k,
                 eye_distance: ed,
                 detected: hit.is_some(),
-                estimate: report.map(|d| d.k),
+                estimate: report.and_then(|d| d.k),
+                measured: report.map(|d| d.k_measured),
+                confidence: report.map(|d| d.confidence),
+                roll_degrees: report.map(|d| d.roll_degrees),
+                k_nose: report.and_then(|d| d.k_nose),
+                k_mouth: report.and_then(|d| d.k_mouth),
+                psr: report.map(|d| d.psr),
+                eye_box_ratio: report
+                    .map(|d| d.right_eye.distance(d.left_eye) / d.face_box.width),
                 eye_error: report
                     .map(|d| d.right_eye.distance(re).max(d.left_eye.distance(le)) / ed),
                 oracle,
@@ -423,9 +445,11 @@ mod tests {
             eye_distance: 50.0,
             detected: estimate.is_some(),
             estimate,
+            measured: estimate,
             eye_error: estimate.map(|_| 0.04),
             oracle: Some(k),
             millis: 1.0,
+            ..Default::default()
         }
     }
 
@@ -480,9 +504,11 @@ mod protocol_tests {
                     eye_distance: 40.0,
                     detected: true,
                     estimate: Some(k),
+                    measured: Some(k),
                     eye_error: Some(0.0),
                     oracle: Some(k),
                     millis: 1.0,
+                    ..Default::default()
                 })
             })
             .collect();

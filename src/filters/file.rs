@@ -9,7 +9,7 @@
 //! | 4 | filter kind, `1` = UMACE |
 //! | 4 | side `n` of each square filter (8 to 256) |
 //! | 4 | face width the filters were trained at, pixels (150) |
-//! | 4 | number of filters, `3`: the subject's right eye, the left eye, the nose |
+//! | 4 | number of filters: `3` (the subject's right eye, the left eye, the nose) or `4` (and the mouth) |
 //! | per filter: 4 + 8 n^2 | training-patch count, then `n * n` complex spectrum values as (re, im) `f32` pairs, row-major |
 //! | 8 | FNV-1a 64-bit hash of every byte before it |
 //!
@@ -29,8 +29,10 @@ pub const FORMAT_VERSION: u32 = 1;
 /// Filter kind code for UMACE.
 const KIND_UMACE: u32 = 1;
 const MIN_SIZE: usize = 8;
-/// Filters in a file: right eye, left eye, nose.
-const FILTER_COUNT: u32 = 3;
+/// Filters in a file without a mouth filter: right eye, left eye, nose.
+const FILTER_COUNT_NO_MOUTH: u32 = 3;
+/// Filters in a file with a mouth filter.
+const FILTER_COUNT_WITH_MOUTH: u32 = 4;
 const MAX_SIZE: usize = 256;
 
 /// The built-in eye filters (trained with `unshear train`, see `models/README.md`).
@@ -46,6 +48,10 @@ pub struct EyeFilters {
     /// Filter for the whole lower nose (tip and both nostrils), centred on the annotated nose
     /// point: used to find where the nose is before the nostrils are searched for.
     pub nose: Filter,
+    /// Filter for the mouth, centred on the annotated mouth centre: the mouth gives a second,
+    /// longer face axis that yaw moves less than the nose (see [`crate::estimate`]). Files
+    /// without it still load; the estimate then uses the nose alone.
+    pub mouth: Option<Filter>,
     /// Width of the normalised face the filters were trained at, in pixels.
     pub face_width: u32,
 }
@@ -112,12 +118,12 @@ impl EyeFilters {
             )));
         }
         let count = r.u32()?;
-        if count != FILTER_COUNT {
+        if count != FILTER_COUNT_NO_MOUTH && count != FILTER_COUNT_WITH_MOUTH {
             return Err(Error::FilterFile(format!(
-                "expected {FILTER_COUNT} filters, found {count}"
+                "expected {FILTER_COUNT_NO_MOUTH} or {FILTER_COUNT_WITH_MOUTH} filters, found {count}"
             )));
         }
-        let expected = 8 + 5 * 4 + FILTER_COUNT as usize * (4 + 8 * size * size);
+        let expected = 8 + 5 * 4 + count as usize * (4 + 8 * size * size);
         if body.len() != expected {
             return Err(Error::FilterFile(format!(
                 "length {} does not match the header (expected {expected})",
@@ -127,10 +133,16 @@ impl EyeFilters {
         let right_eye = r.filter(size)?;
         let left_eye = r.filter(size)?;
         let nose = r.filter(size)?;
+        let mouth = if count == FILTER_COUNT_WITH_MOUTH {
+            Some(r.filter(size)?)
+        } else {
+            None
+        };
         Ok(Self {
             right_eye,
             left_eye,
             nose,
+            mouth,
             face_width,
         })
     }
@@ -138,19 +150,22 @@ impl EyeFilters {
     /// Serialises to the file format (deterministic).
     pub fn to_bytes(&self) -> Vec<u8> {
         let size = self.size();
-        let mut out =
-            Vec::with_capacity(8 + 5 * 4 + FILTER_COUNT as usize * (4 + 8 * size * size) + 8);
+        let filters: Vec<&Filter> = [&self.right_eye, &self.left_eye, &self.nose]
+            .into_iter()
+            .chain(self.mouth.as_ref())
+            .collect();
+        let mut out = Vec::with_capacity(8 + 5 * 4 + filters.len() * (4 + 8 * size * size) + 8);
         out.extend_from_slice(MAGIC);
         for v in [
             FORMAT_VERSION,
             KIND_UMACE,
             size as u32,
             self.face_width,
-            FILTER_COUNT,
+            filters.len() as u32,
         ] {
             out.extend_from_slice(&v.to_le_bytes());
         }
-        for f in [&self.right_eye, &self.left_eye, &self.nose] {
+        for f in filters {
             out.extend_from_slice(&f.training_count.to_le_bytes());
             for c in &f.spectrum {
                 out.extend_from_slice(&c.re.to_le_bytes());
@@ -234,6 +249,7 @@ mod tests {
             right_eye: f(1.0),
             left_eye: f(2.0),
             nose: f(3.0),
+            mouth: Some(f(4.0)),
             face_width: 150,
         }
     }
@@ -250,12 +266,23 @@ mod tests {
     }
 
     #[test]
+    fn files_without_a_mouth_filter_still_load() {
+        let mut filters = sample(8);
+        filters.mouth = None;
+        let bytes = filters.to_bytes();
+        assert_eq!(bytes.len(), sample(8).to_bytes().len() - (4 + 8 * 64));
+        assert_eq!(EyeFilters::from_bytes(&bytes).expect("valid"), filters);
+    }
+
+    #[test]
     fn embedded_filters_load() {
         let f = EyeFilters::embedded().expect("embedded filters valid");
         assert_eq!(f.size(), 64);
         assert_eq!(f.face_width, 150);
         assert!(f.right_eye.training_count >= 1500 && f.left_eye.training_count >= 1500);
         assert_eq!(f.nose.training_count, f.left_eye.training_count);
+        let mouth = f.mouth.expect("built-in filters have a mouth filter");
+        assert_eq!(mouth.training_count, f.left_eye.training_count);
     }
 
     #[test]
@@ -289,7 +316,7 @@ mod tests {
             (16, 4096),
             (16, 16),
             (24, 2),
-            (24, 4),
+            (24, 5),
             (20, 1),
         ] {
             let mut b = good.clone();

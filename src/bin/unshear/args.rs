@@ -44,9 +44,38 @@ pub struct ModelArgs {
     /// Refinement passes: locate the features again in the face de-sheared by the last estimate.
     #[arg(long, value_name = "N", default_value_t = unshear::pipeline::DEFAULT_REFINEMENTS)]
     pub refine: usize,
+    /// How located points become k: `equation5` (the paper), `shear-roll` (eye line and nose
+    /// axis, roll solved exactly), `shear-roll-yaw` (also the mouth axis, yaw extrapolated out).
+    #[arg(long, value_name = "MODEL", default_value = "shear-roll-yaw")]
+    pub shear_model: ShearModelArg,
+    /// Refuse a face's estimate (report `"k": null`, do not correct by it) below this
+    /// confidence (0 to 1).
+    #[arg(long, value_name = "C", default_value_t = unshear::pipeline::DEFAULT_MIN_CONFIDENCE)]
+    pub min_confidence: f64,
     /// Worker threads [default: one per core].
     #[arg(long, short = 'j', value_name = "N")]
     pub jobs: Option<usize>,
+}
+
+/// `--shear-model` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ShearModelArg {
+    /// The paper's equation 5.
+    Equation5,
+    /// Shear and roll from the eye line and the nose axis.
+    ShearRoll,
+    /// Shear and roll from the nose and mouth axes, yaw extrapolated out.
+    ShearRollYaw,
+}
+
+impl From<ShearModelArg> for unshear::estimate::ShearModel {
+    fn from(m: ShearModelArg) -> Self {
+        match m {
+            ShearModelArg::Equation5 => Self::Equation5,
+            ShearModelArg::ShearRoll => Self::ShearRoll,
+            ShearModelArg::ShearRollYaw => Self::ShearRollYaw,
+        }
+    }
 }
 
 /// `unshear estimate`.

@@ -74,6 +74,14 @@ fn load_models(m: &ModelArgs) -> Result<Unshear> {
     };
     let mut unshear = Unshear::new(detector, filters);
     unshear.set_refinements(m.refine);
+    if !(0.0..=1.0).contains(&m.min_confidence) {
+        bail!(
+            "--min-confidence {} is outside 0 to 1",
+            m.min_confidence
+        );
+    }
+    unshear.set_model(m.shear_model.into());
+    unshear.set_min_confidence(m.min_confidence);
     Ok(unshear)
 }
 

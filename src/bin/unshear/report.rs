@@ -1,7 +1,9 @@
 //! The `--json` line for one input, in the documented shape:
 //! `{"file": ..., "k": number|null, "faces": [{"box": [x, y, w, h], "right_eye": [x, y],
-//! "left_eye": [x, y], "right_nostril": [x, y], "left_nostril": [x, y], "k": number,
-//! "confidence": number}]}` plus `"error": "..."` when the input failed.
+//! "left_eye": [x, y], "right_nostril": [x, y], "left_nostril": [x, y], "mouth": [x, y]|null,
+//! "k": number|null, "k_measured": number, "roll": number, "confidence": number}]}` plus
+//! `"error": "..."` when the input failed. A face's `k` is null when its estimate was refused for
+//! low confidence; `k_measured` is what was measured all the same; `roll` is in degrees.
 
 use serde::Serialize;
 use unshear::{FaceReport, ImageReport, Point};
@@ -15,7 +17,10 @@ pub struct JsonFace {
     left_eye: [f64; 2],
     right_nostril: [f64; 2],
     left_nostril: [f64; 2],
-    k: f64,
+    mouth: Option<[f64; 2]>,
+    k: Option<f64>,
+    k_measured: f64,
+    roll: f64,
     confidence: f64,
 }
 
@@ -82,7 +87,10 @@ fn face(f: &FaceReport) -> JsonFace {
         left_eye: pt(f.left_eye),
         right_nostril: pt(f.right_nostril),
         left_nostril: pt(f.left_nostril),
-        k: r4(f.k),
+        mouth: f.mouth.map(pt),
+        k: f.k.map(r4),
+        k_measured: r4(f.k_measured),
+        roll: (f.roll_degrees * 100.0).round() / 100.0,
         confidence: r4(f.confidence),
     }
 }
