@@ -31,11 +31,7 @@ fn rgb_to_ycbcr(rgb: [u8; 3], full_range: bool) -> [f32; 3] {
 
 /// The RGB pixel of `(Y, Cb, Cr)`.
 fn ycbcr_to_rgb(y: u8, cb: u8, cr: u8, full_range: bool) -> [u8; 3] {
-    let (mut y, mut cb, mut cr) = (
-        f32::from(y),
-        f32::from(cb) - 128.0,
-        f32::from(cr) - 128.0,
-    );
+    let (mut y, mut cb, mut cr) = (f32::from(y), f32::from(cb) - 128.0, f32::from(cr) - 128.0);
     if !full_range {
         y = (y - 16.0) * 255.0 / 219.0;
         cb *= 255.0 / 224.0;

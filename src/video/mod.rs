@@ -44,7 +44,9 @@ pub mod temporal;
 pub mod tracker;
 pub mod y4m;
 
-// pub use process
+pub use process::{
+    run, FrameResult, FrameSink, FrameSource, KSource, ProcessOptions, RunStats, VideoProcessor,
+};
 
 use std::borrow::Cow;
 
@@ -369,13 +371,21 @@ mod tests {
         // half the luma shift there.
         let (k, h) = (0.3, 240);
         let luma = Shear::about_middle(k, h);
-        for chroma in [Chroma::Yuv420, Chroma::Yuv420CoSited, Chroma::Yuv422, Chroma::Yuv444] {
+        for chroma in [
+            Chroma::Yuv420,
+            Chroma::Yuv420CoSited,
+            Chroma::Yuv422,
+            Chroma::Yuv444,
+        ] {
             let (hs, vs) = chroma.subsampling();
             let cs = chroma_shear(chroma, k, h);
             for yc in [0.0, 17.0, 59.0, 119.0] {
                 let y = f64::from(vs) * yc + chroma.chroma_row_offset();
                 let want = luma.row_shift(y) / f64::from(hs);
-                assert!((cs.row_shift(yc) - want).abs() < 1e-12, "{chroma:?} row {yc}");
+                assert!(
+                    (cs.row_shift(yc) - want).abs() < 1e-12,
+                    "{chroma:?} row {yc}"
+                );
             }
         }
     }
@@ -421,7 +431,10 @@ mod tests {
         assert_eq!(row39[30], 108, "half of 200 and half of 16");
         assert!(row39[..30].iter().all(|&v| v == 200), "{row39:?}");
         // Chroma: neutral fill, never 0.
-        assert!(f.u.pixels().all(|p| p[0] == 60 || p[0] >= 60 && p[0] <= 128));
+        assert!(f
+            .u
+            .pixels()
+            .all(|p| p[0] == 60 || p[0] >= 60 && p[0] <= 128));
         assert_eq!(f.u.get_pixel(0, 0)[0], 128);
         assert_eq!(f.v.get_pixel(0, 0)[0], 128);
     }

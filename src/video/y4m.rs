@@ -186,9 +186,8 @@ impl<R: Read> Y4mReader<R> {
             inner: Cursor::new(header.clone()).chain(reader),
             count: Arc::clone(&consumed),
         };
-        let decoder =
-            y4m::Decoder::new_with_limits(stream, y4m::Limits { bytes: frame_bytes })
-                .map_err(|e| video_err(format!("y4m header: {e}")))?;
+        let decoder = y4m::Decoder::new_with_limits(stream, y4m::Limits { bytes: frame_bytes })
+            .map_err(|e| video_err(format!("y4m header: {e}")))?;
         if decoder.get_width() != format.width as usize
             || decoder.get_height() != format.height as usize
             || decoder.get_bytes_per_sample() != 1
@@ -352,14 +351,22 @@ impl<W: Write> Y4mWriter<W> {
         result.map_err(|e| video_err(format!("writing a y4m frame: {e}")))
     }
 
+    /// Flushes the underlying writer.
+    ///
+    /// # Errors
+    /// [`Error::Video`] if flushing fails.
+    pub fn flush(&mut self) -> Result<()> {
+        self.writer
+            .flush()
+            .map_err(|e| video_err(format!("writing the y4m stream: {e}")))
+    }
+
     /// Flushes and returns the writer.
     ///
     /// # Errors
     /// [`Error::Video`] if flushing fails.
     pub fn finish(mut self) -> Result<W> {
-        self.writer
-            .flush()
-            .map_err(|e| video_err(format!("writing the y4m stream: {e}")))?;
+        self.flush()?;
         Ok(self.writer)
     }
 }
@@ -468,7 +475,10 @@ mod tests {
             let w = Y4mWriter::new(Vec::new(), &format).expect("header");
             let bytes = w.finish().expect("flush");
             let text = String::from_utf8(bytes.clone()).expect("ascii");
-            assert!(text.contains(tag) && text.contains("XCOLORRANGE=FULL"), "{text}");
+            assert!(
+                text.contains(tag) && text.contains("XCOLORRANGE=FULL"),
+                "{text}"
+            );
             assert_eq!(parse_header(&bytes, 100).expect("parses"), format);
         }
     }
