@@ -162,7 +162,7 @@ mod tests {
             let back = yuv_to_image(&f).to_rgb8();
             for p in back.pixels() {
                 for c in 0..3 {
-                    assert!((i32::from(p[c]) - i32::from([200, 40, 90][c])).abs() <= 2);
+                    assert!((i32::from(p[c]) - [200, 40, 90][c]).abs() <= 2);
                 }
             }
         }

@@ -36,8 +36,14 @@ pub struct VideoArgs {
     /// [default: none, analysis only].
     #[arg(short = 'o', long = "output", value_name = "OUT")]
     pub output: Option<PathBuf>,
-    /// Write one JSON line per frame to FILE (`-` or no value: stdout).
-    #[arg(long, value_name = "FILE", num_args = 0..=1, default_missing_value = "-")]
+    /// Write one JSON line per frame: `--json` to stdout, `--json=FILE` to a file.
+    #[arg(
+        long,
+        value_name = "FILE",
+        num_args = 0..=1,
+        require_equals = true,
+        default_missing_value = "-"
+    )]
     pub json: Option<PathBuf>,
     /// Do not correct: frames are written unchanged (analysis only).
     #[arg(long)]
@@ -180,7 +186,7 @@ pub fn video(a: VideoArgs) -> Result<()> {
     let json_to_stdout = a.json.as_deref().is_some_and(is_stdio);
     let y4m_to_stdout = a.output.as_deref().is_some_and(is_stdio);
     if json_to_stdout && y4m_to_stdout {
-        usage_error("--json and -o - would both write to stdout; give --json a FILE");
+        usage_error("--json and -o - would both write to stdout; use --json=FILE");
     }
     if !(a.hold.is_finite() && a.hold >= 0.0 && a.decay.is_finite() && a.decay > 0.0) {
         usage_error("--hold must be >= 0 and --decay > 0 seconds");
