@@ -47,6 +47,10 @@ pub enum Error {
     /// An argument is outside its valid range (for example a non-finite shear).
     #[error("invalid argument: {0}")]
     InvalidArgument(String),
+    /// A video stream or frame folder is malformed, truncated, inconsistent or in a layout that
+    /// is not supported (see [`crate::video`]).
+    #[error("video: {0}")]
+    Video(String),
     /// The output would overwrite an input or an existing file.
     #[error("refusing to write {path}: {reason}")]
     Refused {

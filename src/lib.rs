@@ -19,6 +19,8 @@
 //! * [`warp`]: sub-pixel row shifts that apply or undo a shear (equation 6).
 //! * [`pipeline`]: all of the above behind one [`Unshear`] value.
 //! * [`train`]: building the eye filters from an annotated data set.
+//! * [`video`]: y4m streams and frame folders, faces tracked between detections, `k` filtered
+//!   over time.
 
 pub mod annotate;
 pub mod dataset;
@@ -32,6 +34,7 @@ pub mod geometry;
 pub mod imageio;
 pub mod pipeline;
 pub mod train;
+pub mod video;
 pub mod warp;
 
 pub use error::{Error, Result};

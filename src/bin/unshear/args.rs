@@ -23,6 +23,8 @@ pub enum Command {
     Estimate(EstimateArgs),
     /// Synthesise rolling-shutter shear: x' = x + k (y - pivot).
     Distort(DistortArgs),
+    /// Correct a video: y4m file or pipe (`-`), or a folder of numbered frames.
+    Video(crate::video::VideoArgs),
     /// Train the eye filters from an annotated data set (Caltech Web Faces layout).
     Train(TrainArgs),
     /// Measure accuracy on annotated faces sheared synthetically.

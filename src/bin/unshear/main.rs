@@ -7,6 +7,7 @@
 mod args;
 mod batch;
 mod report;
+mod video;
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -33,6 +34,7 @@ fn main() -> ExitCode {
         Command::Estimate(a) => estimate(a),
         Command::Correct(a) => correct(a),
         Command::Distort(a) => distort(a).map(|()| true),
+        Command::Video(a) => video::video(a).map(|()| true),
         Command::Train(a) => train(a).map(|()| true),
         Command::Eval(e) => match e.what {
             EvalCommand::Shear(a) => eval_shear(a).map(|()| true),

@@ -36,7 +36,7 @@ pub struct JsonLine {
 
 /// Rounds to 4 decimals: sub-pixel positions and k to 1e-4 are more than the method resolves,
 /// and short lines are easier to read.
-fn r4(v: f64) -> f64 {
+pub fn r4(v: f64) -> f64 {
     (v * 1e4).round() / 1e4
 }
 
@@ -79,7 +79,8 @@ impl JsonLine {
     }
 }
 
-fn face(f: &FaceReport) -> JsonFace {
+/// One face as printed (shared by `estimate --json` and `video --json`).
+pub fn face(f: &FaceReport) -> JsonFace {
     let b = f.face_box;
     JsonFace {
         face_box: [r4(b.x), r4(b.y), r4(b.width), r4(b.height)],

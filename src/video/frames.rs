@@ -1,0 +1,306 @@
+//! Folders of numbered frames (any format [`crate::imageio`] reads) in and out, and the y4m
+//! reader and writer as frame sources and sinks.
+//!
+//! * In: every file of the folder (not its sub-folders) with an image extension, in natural
+//!   order (`frame2.png` before `frame10.png`: runs of digits compare as numbers). All frames
+//!   must have the size of the first.
+//! * Out: `000000.EXT`, `000001.EXT`, ... in the output folder (created if needed), each written
+//!   atomically; an existing file is only replaced when allowed, an input never.
+
+use std::cmp::Ordering;
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
+
+use super::color::{image_to_yuv, yuv_to_image};
+use super::process::{FrameSink, FrameSource};
+use super::y4m::{Y4mReader, Y4mWriter};
+use super::VideoFrame;
+use crate::imageio::{self, WriteOptions};
+use crate::{Error, Result};
+
+/// Extensions taken as frames when listing a folder (case-insensitive).
+pub const FRAME_EXTENSIONS: &[&str] = &[
+    "jpg", "jpeg", "png", "pgm", "ppm", "pnm", "bmp", "tif", "tiff", "webp",
+];
+
+/// Compares names so that runs of digits compare by value (`a2` < `a10`), then as text.
+pub fn natural_cmp(a: &str, b: &str) -> Ordering {
+    let (mut x, mut y) = (a.as_bytes(), b.as_bytes());
+    loop {
+        match (x.first(), y.first()) {
+            (None, None) => return a.cmp(b),
+            (None, Some(_)) => return Ordering::Less,
+            (Some(_), None) => return Ordering::Greater,
+            (Some(c), Some(d)) if c.is_ascii_digit() && d.is_ascii_digit() => {
+                let nx = x.iter().take_while(|c| c.is_ascii_digit()).count();
+                let ny = y.iter().take_while(|c| c.is_ascii_digit()).count();
+                let (dx, dy) = (&x[..nx], &y[..ny]);
+                // Compare by value: strip leading zeros, then longer is larger.
+                let strip = |d: &'_ [u8]| -> usize { d.iter().take_while(|&&c| c == b'0').count() };
+                let (vx, vy) = (&dx[strip(dx)..], &dy[strip(dy)..]);
+                let o = vx.len().cmp(&vy.len()).then_with(|| vx.cmp(vy));
+                if o != Ordering::Equal {
+                    return o;
+                }
+                x = &x[nx..];
+                y = &y[ny..];
+            }
+            (Some(c), Some(d)) => {
+                if c != d {
+                    return c.cmp(d);
+                }
+                x = &x[1..];
+                y = &y[1..];
+            }
+        }
+    }
+}
+
+/// The frame files of `dir` in natural order.
+///
+/// # Errors
+/// [`Error::Io`] if the folder cannot be read, [`Error::Video`] if it holds no frame.
+pub fn list_frames(dir: &Path) -> Result<Vec<PathBuf>> {
+    let io = |source| Error::Io {
+        path: dir.to_path_buf(),
+        source,
+    };
+    let mut frames = Vec::new();
+    for entry in std::fs::read_dir(dir).map_err(io)? {
+        let path = entry.map_err(io)?.path();
+        let is_frame = path.is_file()
+            && path
+                .extension()
+                .and_then(|e| e.to_str())
+                .is_some_and(|e| FRAME_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()));
+        if is_frame {
+            frames.push(path);
+        }
+    }
+    if frames.is_empty() {
+        return Err(Error::Video(format!(
+            "{}: no frames (image files) in the folder",
+            dir.display()
+        )));
+    }
+    frames.sort_by(|a, b| {
+        let name = |p: &Path| p.file_name().map(|n| n.to_string_lossy().into_owned());
+        natural_cmp(&name(a).unwrap_or_default(), &name(b).unwrap_or_default())
+    });
+    Ok(frames)
+}
+
+/// Frames read from a list of image files.
+#[derive(Debug)]
+pub struct FrameFolderReader {
+    paths: Vec<PathBuf>,
+    next: usize,
+    max_pixels: u64,
+    size: (u32, u32),
+    first: Option<VideoFrame>,
+}
+
+impl FrameFolderReader {
+    /// Reads the first frame (to know the size) of `paths`.
+    ///
+    /// # Errors
+    /// [`Error::Video`] for an empty list; the first image's read error.
+    pub fn new(paths: Vec<PathBuf>, max_pixels: u64) -> Result<Self> {
+        let first_path = paths
+            .first()
+            .ok_or_else(|| Error::Video("no frames".into()))?;
+        let first = imageio::read_image(first_path, max_pixels)?;
+        Ok(Self {
+            size: (first.width(), first.height()),
+            first: Some(VideoFrame::Image(first)),
+            next: 1,
+            paths,
+            max_pixels,
+        })
+    }
+
+    /// Width and height of every frame.
+    pub fn dimensions(&self) -> (u32, u32) {
+        self.size
+    }
+
+    /// The input files.
+    pub fn paths(&self) -> &[PathBuf] {
+        &self.paths
+    }
+}
+
+impl FrameSource for FrameFolderReader {
+    fn next_frame(&mut self) -> Result<Option<VideoFrame>> {
+        if let Some(f) = self.first.take() {
+            return Ok(Some(f));
+        }
+        let Some(path) = self.paths.get(self.next) else {
+            return Ok(None);
+        };
+        self.next += 1;
+        let img = imageio::read_image(path, self.max_pixels)?;
+        if (img.width(), img.height()) != self.size {
+            return Err(Error::Video(format!(
+                "{}: {}x{}, but the first frame is {}x{}",
+                path.display(),
+                img.width(),
+                img.height(),
+                self.size.0,
+                self.size.1
+            )));
+        }
+        Ok(Some(VideoFrame::Image(img)))
+    }
+}
+
+/// Frames written as numbered images into a folder.
+#[derive(Debug)]
+pub struct FrameFolderWriter {
+    dir: PathBuf,
+    extension: String,
+    options: WriteOptions,
+    next: u64,
+}
+
+impl FrameFolderWriter {
+    /// Writes into `dir` (created if needed) as `NNNNNN.<extension>`.
+    ///
+    /// # Errors
+    /// [`Error::Refused`] for an extension [`imageio`] cannot write, [`Error::Io`] if the
+    /// folder cannot be created.
+    pub fn new(dir: &Path, extension: &str, options: WriteOptions) -> Result<Self> {
+        let probe = dir.join(format!("000000.{extension}"));
+        if !imageio::output_format_supported(&probe) {
+            return Err(Error::Refused {
+                path: probe,
+                reason: "unknown frame format (use jpg, png, pgm, ppm, pnm, bmp, tif or webp)"
+                    .into(),
+            });
+        }
+        std::fs::create_dir_all(dir).map_err(|source| Error::Io {
+            path: dir.to_path_buf(),
+            source,
+        })?;
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            extension: extension.to_string(),
+            options,
+            next: 0,
+        })
+    }
+
+    /// The file frame `index` is written to.
+    pub fn frame_path(&self, index: u64) -> PathBuf {
+        self.dir.join(format!("{index:06}.{}", self.extension))
+    }
+}
+
+impl FrameSink for FrameFolderWriter {
+    fn write_frame(&mut self, frame: VideoFrame) -> Result<()> {
+        let img = match frame {
+            VideoFrame::Image(i) => i,
+            VideoFrame::Yuv(f) => yuv_to_image(&f),
+        };
+        let path = self.frame_path(self.next);
+        imageio::write_image_atomic(&img, &path, self.options.clone())?;
+        self.next += 1;
+        Ok(())
+    }
+
+    fn finish(&mut self) -> Result<()> {
+        Ok(())
+    }
+}
+
+impl<R: Read + Send> FrameSource for Y4mReader<R> {
+    fn next_frame(&mut self) -> Result<Option<VideoFrame>> {
+        Ok(self.read_frame()?.map(VideoFrame::Yuv))
+    }
+}
+
+impl<W: Write + Send> FrameSink for Y4mWriter<W> {
+    fn write_frame(&mut self, frame: VideoFrame) -> Result<()> {
+        match frame {
+            VideoFrame::Yuv(f) => Y4mWriter::write_frame(self, &f),
+            VideoFrame::Image(i) => {
+                let f = self.format();
+                let yuv = image_to_yuv(&i, f.chroma, f.full_range);
+                Y4mWriter::write_frame(self, &yuv)
+            }
+        }
+    }
+
+    fn finish(&mut self) -> Result<()> {
+        self.flush()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use image::{DynamicImage, GrayImage, Luma};
+
+    #[test]
+    fn natural_order() {
+        let mut v = vec!["f10.png", "f2.png", "f1.png", "f02.png", "g.png", "f.png"];
+        v.sort_by(|a, b| natural_cmp(a, b));
+        assert_eq!(
+            v,
+            ["f.png", "f1.png", "f02.png", "f2.png", "f10.png", "g.png"]
+        );
+    }
+
+    #[test]
+    fn folder_round_trip_and_size_check() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let input = dir.path().join("in");
+        std::fs::create_dir(&input).expect("mkdir");
+        for (i, v) in [(10, 50u8), (9, 40), (1, 30)] {
+            let img = GrayImage::from_pixel(8, 6, Luma([v]));
+            img.save(input.join(format!("frame{i}.png"))).expect("save");
+        }
+        std::fs::write(input.join("notes.txt"), b"x").expect("write");
+        let paths = list_frames(&input).expect("frames");
+        let names: Vec<_> = paths
+            .iter()
+            .map(|p| {
+                p.file_name()
+                    .unwrap_or_default()
+                    .to_string_lossy()
+                    .into_owned()
+            })
+            .collect();
+        assert_eq!(names, ["frame1.png", "frame9.png", "frame10.png"]);
+        let mut reader = FrameFolderReader::new(paths, 1000).expect("first frame");
+        assert_eq!(reader.dimensions(), (8, 6));
+        let out = dir.path().join("out");
+        let mut writer =
+            FrameFolderWriter::new(&out, "png", WriteOptions::default()).expect("writer");
+        while let Some(f) = reader.next_frame().expect("frame") {
+            writer.write_frame(f).expect("write");
+        }
+        let back = imageio::read_image(&out.join("000002.png"), 1000).expect("written");
+        assert_eq!(
+            back,
+            DynamicImage::ImageLuma8(GrayImage::from_pixel(8, 6, Luma([50])))
+        );
+        // Existing outputs are not replaced without permission.
+        let mut again =
+            FrameFolderWriter::new(&out, "png", WriteOptions::default()).expect("writer");
+        let frame = VideoFrame::Image(DynamicImage::ImageLuma8(GrayImage::new(8, 6)));
+        assert!(matches!(
+            again.write_frame(frame),
+            Err(Error::Refused { .. })
+        ));
+        // A frame of another size is an error.
+        GrayImage::new(4, 4)
+            .save(input.join("frame11.png"))
+            .expect("save");
+        let mut reader =
+            FrameFolderReader::new(list_frames(&input).expect("frames"), 1000).expect("first");
+        let results: Vec<_> = std::iter::from_fn(|| reader.next_frame().transpose()).collect();
+        assert!(results.last().is_some_and(|r| r.is_err()));
+        assert!(list_frames(&out.join("nothing")).is_err());
+    }
+}
