@@ -332,16 +332,19 @@ impl Unshear {
     /// Locates the features in one detected face, starting from the view its detection was made
     /// in, and estimates its shear.
     pub fn estimate_detection(&self, gray: &GrayImage, detection: &Detection) -> Option<FaceReport> {
-        self.estimate_face_from(gray, detection.face_box, detection.view_k)
+        self.estimate_face_in_view(gray, detection.face_box, detection.view_k)
     }
 
     /// Locates the features in one face box and estimates its shear; `None` when the points do
     /// not allow an estimate (the nose not below the eyes).
     pub fn estimate_face(&self, gray: &GrayImage, face_box: Rect) -> Option<FaceReport> {
-        self.estimate_face_from(gray, face_box, 0.0)
+        self.estimate_face_in_view(gray, face_box, 0.0)
     }
 
-    fn estimate_face_from(
+    /// [`Self::estimate_face`] starting from the face de-sheared by `start_k` (a shear already
+    /// known roughly, e.g. from the detection hypothesis or the previous video frame), so that
+    /// the filters see nearly upright features from the first pass.
+    pub fn estimate_face_in_view(
         &self,
         gray: &GrayImage,
         face_box: Rect,
@@ -474,7 +477,7 @@ pub fn confidence(points: &FacePoints, _estimate: &crate::estimate::FaceEstimate
 }
 
 /// The image's shear from its faces' accepted estimates: the median.
-fn combined_shear(faces: &[FaceReport]) -> Option<f64> {
+pub fn combined_shear(faces: &[FaceReport]) -> Option<f64> {
     median(faces.iter().filter_map(|f| f.k).collect())
 }
 

@@ -10,7 +10,7 @@ use rayon::prelude::*;
 use super::temporal::{FilterParams, ShearFilter, Update};
 use super::tracker::{FaceTracker, TrackerParams, TrackerStats};
 use super::VideoFrame;
-use crate::pipeline::median;
+use crate::pipeline::combined_shear;
 use crate::warp::Interpolation;
 use crate::{FaceReport, Result, Unshear};
 
@@ -104,18 +104,20 @@ impl<'a> VideoProcessor<'a> {
     pub fn analyse(&mut self, gray: &GrayImage) -> FrameResult {
         let boxes = self.tracker.track(gray, self.filter.k());
         let unshear = self.unshear;
+        // Start from the filtered shear: the features are then searched in a nearly upright view.
+        let view_k = self.filter.k();
         let faces: Vec<FaceReport> = if boxes.len() > 1 {
             boxes
                 .par_iter()
-                .filter_map(|&b| unshear.estimate_face(gray, b))
+                .filter_map(|&b| unshear.estimate_face_in_view(gray, b, view_k))
                 .collect()
         } else {
             boxes
                 .iter()
-                .filter_map(|&b| unshear.estimate_face(gray, b))
+                .filter_map(|&b| unshear.estimate_face_in_view(gray, b, view_k))
                 .collect()
         };
-        let k_raw = median(faces.iter().map(|f| f.k).collect());
+        let k_raw = combined_shear(&faces);
         let update = self.filter.update(k_raw);
         let index = self.next_index;
         self.next_index += 1;
