@@ -11,6 +11,7 @@ use crate::{Error, Result};
 use image::codecs::jpeg::JpegEncoder;
 use image::codecs::pnm::{PnmEncoder, PnmSubtype, SampleEncoding};
 use image::{DynamicImage, GrayImage, ImageDecoder, ImageFormat, ImageReader, Limits};
+use std::borrow::Cow;
 use std::io::{BufRead, BufWriter, Cursor, Seek, Write};
 use std::path::{Path, PathBuf};
 
@@ -215,21 +216,29 @@ fn is_gray(img: &DynamicImage) -> bool {
 ///   `image` PNM encoder writes 8-bit samples only).
 /// * BMP, WebP (lossless): 8-bit, alpha kept.
 /// * TIFF: everything kept except grey float (→ 16-bit grey); `La`-16 is stored as `Rgba16`.
-fn convert_for(img: &DynamicImage, format: OutFormat) -> DynamicImage {
+///
+/// Borrows `img` when it can be written as it is (no copy of a large photo just to encode it).
+fn convert_for(img: &DynamicImage, format: OutFormat) -> Cow<'_, DynamicImage> {
     use DynamicImage as D;
     let gray = is_gray(img);
     let alpha = img.color().has_alpha();
-    let keep = |ok: bool, conv: fn(&D) -> D| if ok { img.clone() } else { conv(img) };
+    let keep = |ok: bool, conv: fn(&D) -> D| {
+        if ok {
+            Cow::Borrowed(img)
+        } else {
+            Cow::Owned(conv(img))
+        }
+    };
     match format {
         OutFormat::Jpeg => match (gray, img) {
-            (true, D::ImageLuma8(_)) | (false, D::ImageRgb8(_)) => img.clone(),
-            (true, _) => D::ImageLuma8(img.to_luma8()),
-            (false, _) => D::ImageRgb8(img.to_rgb8()),
+            (true, D::ImageLuma8(_)) | (false, D::ImageRgb8(_)) => Cow::Borrowed(img),
+            (true, _) => Cow::Owned(D::ImageLuma8(img.to_luma8())),
+            (false, _) => Cow::Owned(D::ImageRgb8(img.to_rgb8())),
         },
         OutFormat::Png => match img {
-            D::ImageRgb32F(_) => D::ImageRgb16(img.to_rgb16()),
-            D::ImageRgba32F(_) => D::ImageRgba16(img.to_rgba16()),
-            _ => img.clone(),
+            D::ImageRgb32F(_) => Cow::Owned(D::ImageRgb16(img.to_rgb16())),
+            D::ImageRgba32F(_) => Cow::Owned(D::ImageRgba16(img.to_rgba16())),
+            _ => Cow::Borrowed(img),
         },
         OutFormat::Pgm => keep(matches!(img, D::ImageLuma8(_)), |i| {
             D::ImageLuma8(i.to_luma8())
@@ -254,7 +263,7 @@ fn convert_for(img: &DynamicImage, format: OutFormat) -> DynamicImage {
             }),
         },
         OutFormat::Tiff => match img {
-            D::ImageLumaA16(_) => D::ImageRgba16(img.to_rgba16()),
+            D::ImageLumaA16(_) => Cow::Owned(D::ImageRgba16(img.to_rgba16())),
             D::ImageLuma8(_)
             | D::ImageLumaA8(_)
             | D::ImageRgb8(_)
@@ -263,8 +272,8 @@ fn convert_for(img: &DynamicImage, format: OutFormat) -> DynamicImage {
             | D::ImageRgb16(_)
             | D::ImageRgba16(_)
             | D::ImageRgb32F(_)
-            | D::ImageRgba32F(_) => img.clone(),
-            _ => D::ImageRgba32F(img.to_rgba32f()),
+            | D::ImageRgba32F(_) => Cow::Borrowed(img),
+            _ => Cow::Owned(D::ImageRgba32F(img.to_rgba32f())),
         },
     }
 }
@@ -372,6 +381,8 @@ pub fn write_atomic(
     #[cfg(unix)]
     builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
     let tmp = builder.tempfile_in(dir).map_err(io_err)?;
+    // Listed while it exists, so a signal handler can remove it (see temp_files_in_progress).
+    let _listed = InProgress::new(tmp.path());
     {
         let mut w = BufWriter::new(tmp.as_file());
         write(&mut w)?;
@@ -391,6 +402,43 @@ pub fn write_atomic(
         })?;
     }
     Ok(())
+}
+
+/// Temporary files that [`write_atomic`] has created and not yet renamed or removed.
+static IN_PROGRESS: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+/// Keeps one path in [`IN_PROGRESS`] for its lifetime.
+struct InProgress(PathBuf);
+
+impl InProgress {
+    fn new(path: &Path) -> Self {
+        let path = path.to_path_buf();
+        if let Ok(mut list) = IN_PROGRESS.lock() {
+            list.push(path.clone());
+        }
+        Self(path)
+    }
+}
+
+impl Drop for InProgress {
+    fn drop(&mut self) {
+        if let Ok(mut list) = IN_PROGRESS.lock() {
+            if let Some(i) = list.iter().position(|p| *p == self.0) {
+                list.swap_remove(i);
+            }
+        }
+    }
+}
+
+/// The temporary files (`.unshear-*.tmp`, in the output folders) that writes in progress in this
+/// process have created and not yet renamed into place or removed.
+///
+/// A process that is about to exit without unwinding (for example from a signal handler, where
+/// the writing threads' destructors will not run) removes these so that no temporary file is
+/// left behind; the final outputs are unaffected, since a temporary file only becomes an output
+/// by an atomic rename. Removing a file whose rename has just happened fails harmlessly.
+pub fn temp_files_in_progress() -> Vec<PathBuf> {
+    IN_PROGRESS.lock().map(|l| l.clone()).unwrap_or_default()
 }
 
 #[cfg(test)]
