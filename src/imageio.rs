@@ -380,9 +380,8 @@ pub fn write_atomic(
     // tempfile creates 0600 files; an output should get the usual 0666-minus-umask instead.
     #[cfg(unix)]
     builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
-    let tmp = builder.tempfile_in(dir).map_err(io_err)?;
-    // Listed while it exists, so a signal handler can remove it (see temp_files_in_progress).
-    let _listed = InProgress::new(tmp.path());
+    // Listed while it exists, so a signal handler can remove it (see abandon_writes).
+    let (tmp, _listed) = InProgress::create(&builder, dir).map_err(io_err)?;
     {
         let mut w = BufWriter::new(tmp.as_file());
         write(&mut w)?;
@@ -404,41 +403,66 @@ pub fn write_atomic(
     Ok(())
 }
 
-/// Temporary files that [`write_atomic`] has created and not yet renamed or removed.
-static IN_PROGRESS: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+/// Temporary files that [`write_atomic`] has created and not yet renamed or removed; `None`
+/// once [`abandon_writes`] has run.
+static IN_PROGRESS: std::sync::Mutex<Option<Vec<PathBuf>>> =
+    std::sync::Mutex::new(Some(Vec::new()));
 
-/// Keeps one path in [`IN_PROGRESS`] for its lifetime.
+/// Keeps one temporary file listed in [`IN_PROGRESS`] for its lifetime.
 struct InProgress(PathBuf);
 
 impl InProgress {
-    fn new(path: &Path) -> Self {
-        let path = path.to_path_buf();
-        if let Ok(mut list) = IN_PROGRESS.lock() {
-            list.push(path.clone());
-        }
-        Self(path)
+    /// Creates the temporary file and lists it, under the lock, so that [`abandon_writes`] sees
+    /// every file created before it and none can be created after it.
+    fn create(
+        builder: &tempfile::Builder,
+        dir: &Path,
+    ) -> std::io::Result<(tempfile::NamedTempFile, Self)> {
+        let mut list = IN_PROGRESS
+            .lock()
+            .map_err(|_| std::io::Error::other("a writer thread panicked"))?;
+        let Some(list) = list.as_mut() else {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::Interrupted,
+                "the process is stopping",
+            ));
+        };
+        let tmp = builder.tempfile_in(dir)?;
+        list.push(tmp.path().to_path_buf());
+        let listed = Self(tmp.path().to_path_buf());
+        Ok((tmp, listed))
     }
 }
 
 impl Drop for InProgress {
     fn drop(&mut self) {
         if let Ok(mut list) = IN_PROGRESS.lock() {
-            if let Some(i) = list.iter().position(|p| *p == self.0) {
-                list.swap_remove(i);
+            if let Some(list) = list.as_mut() {
+                if let Some(i) = list.iter().position(|p| *p == self.0) {
+                    list.swap_remove(i);
+                }
             }
         }
     }
 }
 
-/// The temporary files (`.unshear-*.tmp`, in the output folders) that writes in progress in this
-/// process have created and not yet renamed into place or removed.
+/// For a process about to exit without unwinding (a signal handler, where the writing threads'
+/// destructors will not run): removes the temporary files (`.unshear-*.tmp`) of the writes in
+/// progress in this process, and makes every later write fail with
+/// [`std::io::ErrorKind::Interrupted`] before it creates a file. Returns how many files were
+/// removed.
 ///
-/// A process that is about to exit without unwinding (for example from a signal handler, where
-/// the writing threads' destructors will not run) removes these so that no temporary file is
-/// left behind; the final outputs are unaffected, since a temporary file only becomes an output
-/// by an atomic rename. Removing a file whose rename has just happened fails harmlessly.
-pub fn temp_files_in_progress() -> Vec<PathBuf> {
-    IN_PROGRESS.lock().map(|l| l.clone()).unwrap_or_default()
+/// Outputs are unaffected: a temporary file becomes an output only by an atomic rename, and
+/// removing one whose rename has just happened fails harmlessly (the complete output stays).
+pub fn abandon_writes() -> usize {
+    let Ok(mut list) = IN_PROGRESS.lock() else {
+        return 0;
+    };
+    list.take()
+        .unwrap_or_default()
+        .into_iter()
+        .filter(|p| std::fs::remove_file(p).is_ok())
+        .count()
 }
 
 #[cfg(test)]

@@ -5,7 +5,7 @@
 //! no temporary file remains), their results are printed, and the process exits with 130. A
 //! second signal, or the first one in a command that is not a batch, stops at once: the
 //! temporary files of writes still in progress are removed first (see
-//! [`unshear::imageio::temp_files_in_progress`]), then the process exits with 130.
+//! [`unshear::imageio::abandon_writes`]), then the process exits with 130.
 //!
 //! SIGKILL cannot be caught: a killed run can leave `.unshear-*.tmp` files beside the outputs,
 //! never a partial output (outputs appear only by an atomic rename).
@@ -28,9 +28,7 @@ pub fn install(graceful: bool) {
             );
             return;
         }
-        for tmp in unshear::imageio::temp_files_in_progress() {
-            let _ = std::fs::remove_file(tmp);
-        }
+        unshear::imageio::abandon_writes();
         eprintln!("unshear: interrupted");
         std::process::exit(i32::from(EXIT_INTERRUPTED));
     });
