@@ -168,7 +168,7 @@ fn estimate_config() -> ProptestConfig {
     ProptestConfig {
         cases: 6,
         // Fixed, so the suite is reproducible: the tolerances above are measured ones, not bounds.
-        rng_seed: proptest::test_runner::RngSeed::Fixed(0x756e_7368_6561_72),
+        rng_seed: proptest::test_runner::RngSeed::Fixed(0x0075_6e73_6865_6172),
         failure_persistence: None,
         ..ProptestConfig::default()
     }
