@@ -11,6 +11,7 @@ use crate::{Error, Result};
 use image::codecs::jpeg::JpegEncoder;
 use image::codecs::pnm::{PnmEncoder, PnmSubtype, SampleEncoding};
 use image::{DynamicImage, GrayImage, ImageDecoder, ImageFormat, ImageReader, Limits};
+use std::borrow::Cow;
 use std::io::{BufRead, BufWriter, Cursor, Seek, Write};
 use std::path::{Path, PathBuf};
 
@@ -215,21 +216,29 @@ fn is_gray(img: &DynamicImage) -> bool {
 ///   `image` PNM encoder writes 8-bit samples only).
 /// * BMP, WebP (lossless): 8-bit, alpha kept.
 /// * TIFF: everything kept except grey float (→ 16-bit grey); `La`-16 is stored as `Rgba16`.
-fn convert_for(img: &DynamicImage, format: OutFormat) -> DynamicImage {
+///
+/// Borrows `img` when it can be written as it is (no copy of a large photo just to encode it).
+fn convert_for(img: &DynamicImage, format: OutFormat) -> Cow<'_, DynamicImage> {
     use DynamicImage as D;
     let gray = is_gray(img);
     let alpha = img.color().has_alpha();
-    let keep = |ok: bool, conv: fn(&D) -> D| if ok { img.clone() } else { conv(img) };
+    let keep = |ok: bool, conv: fn(&D) -> D| {
+        if ok {
+            Cow::Borrowed(img)
+        } else {
+            Cow::Owned(conv(img))
+        }
+    };
     match format {
         OutFormat::Jpeg => match (gray, img) {
-            (true, D::ImageLuma8(_)) | (false, D::ImageRgb8(_)) => img.clone(),
-            (true, _) => D::ImageLuma8(img.to_luma8()),
-            (false, _) => D::ImageRgb8(img.to_rgb8()),
+            (true, D::ImageLuma8(_)) | (false, D::ImageRgb8(_)) => Cow::Borrowed(img),
+            (true, _) => Cow::Owned(D::ImageLuma8(img.to_luma8())),
+            (false, _) => Cow::Owned(D::ImageRgb8(img.to_rgb8())),
         },
         OutFormat::Png => match img {
-            D::ImageRgb32F(_) => D::ImageRgb16(img.to_rgb16()),
-            D::ImageRgba32F(_) => D::ImageRgba16(img.to_rgba16()),
-            _ => img.clone(),
+            D::ImageRgb32F(_) => Cow::Owned(D::ImageRgb16(img.to_rgb16())),
+            D::ImageRgba32F(_) => Cow::Owned(D::ImageRgba16(img.to_rgba16())),
+            _ => Cow::Borrowed(img),
         },
         OutFormat::Pgm => keep(matches!(img, D::ImageLuma8(_)), |i| {
             D::ImageLuma8(i.to_luma8())
@@ -254,7 +263,7 @@ fn convert_for(img: &DynamicImage, format: OutFormat) -> DynamicImage {
             }),
         },
         OutFormat::Tiff => match img {
-            D::ImageLumaA16(_) => D::ImageRgba16(img.to_rgba16()),
+            D::ImageLumaA16(_) => Cow::Owned(D::ImageRgba16(img.to_rgba16())),
             D::ImageLuma8(_)
             | D::ImageLumaA8(_)
             | D::ImageRgb8(_)
@@ -263,8 +272,8 @@ fn convert_for(img: &DynamicImage, format: OutFormat) -> DynamicImage {
             | D::ImageRgb16(_)
             | D::ImageRgba16(_)
             | D::ImageRgb32F(_)
-            | D::ImageRgba32F(_) => img.clone(),
-            _ => D::ImageRgba32F(img.to_rgba32f()),
+            | D::ImageRgba32F(_) => Cow::Borrowed(img),
+            _ => Cow::Owned(D::ImageRgba32F(img.to_rgba32f())),
         },
     }
 }
@@ -371,7 +380,8 @@ pub fn write_atomic(
     // tempfile creates 0600 files; an output should get the usual 0666-minus-umask instead.
     #[cfg(unix)]
     builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
-    let tmp = builder.tempfile_in(dir).map_err(io_err)?;
+    // Listed while it exists, so a signal handler can remove it (see abandon_writes).
+    let (tmp, _listed) = InProgress::create(&builder, dir).map_err(io_err)?;
     {
         let mut w = BufWriter::new(tmp.as_file());
         write(&mut w)?;
@@ -391,6 +401,68 @@ pub fn write_atomic(
         })?;
     }
     Ok(())
+}
+
+/// Temporary files that [`write_atomic`] has created and not yet renamed or removed; `None`
+/// once [`abandon_writes`] has run.
+static IN_PROGRESS: std::sync::Mutex<Option<Vec<PathBuf>>> =
+    std::sync::Mutex::new(Some(Vec::new()));
+
+/// Keeps one temporary file listed in [`IN_PROGRESS`] for its lifetime.
+struct InProgress(PathBuf);
+
+impl InProgress {
+    /// Creates the temporary file and lists it, under the lock, so that [`abandon_writes`] sees
+    /// every file created before it and none can be created after it.
+    fn create(
+        builder: &tempfile::Builder,
+        dir: &Path,
+    ) -> std::io::Result<(tempfile::NamedTempFile, Self)> {
+        let mut list = IN_PROGRESS
+            .lock()
+            .map_err(|_| std::io::Error::other("a writer thread panicked"))?;
+        let Some(list) = list.as_mut() else {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::Interrupted,
+                "the process is stopping",
+            ));
+        };
+        let tmp = builder.tempfile_in(dir)?;
+        list.push(tmp.path().to_path_buf());
+        let listed = Self(tmp.path().to_path_buf());
+        Ok((tmp, listed))
+    }
+}
+
+impl Drop for InProgress {
+    fn drop(&mut self) {
+        if let Ok(mut list) = IN_PROGRESS.lock() {
+            if let Some(list) = list.as_mut() {
+                if let Some(i) = list.iter().position(|p| *p == self.0) {
+                    list.swap_remove(i);
+                }
+            }
+        }
+    }
+}
+
+/// For a process about to exit without unwinding (a signal handler, where the writing threads'
+/// destructors will not run): removes the temporary files (`.unshear-*.tmp`) of the writes in
+/// progress in this process, and makes every later write fail with
+/// [`std::io::ErrorKind::Interrupted`] before it creates a file. Returns how many files were
+/// removed.
+///
+/// Outputs are unaffected: a temporary file becomes an output only by an atomic rename, and
+/// removing one whose rename has just happened fails harmlessly (the complete output stays).
+pub fn abandon_writes() -> usize {
+    let Ok(mut list) = IN_PROGRESS.lock() else {
+        return 0;
+    };
+    list.take()
+        .unwrap_or_default()
+        .into_iter()
+        .filter(|p| std::fs::remove_file(p).is_ok())
+        .count()
 }
 
 #[cfg(test)]

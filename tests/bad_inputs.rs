@@ -189,3 +189,340 @@ fn unreadable_files_symlink_loops_and_non_utf8_names() {
     assert_eq!(lines.len(), 2, "both images, once each");
     assert!(lines.iter().all(|l| l["k"].is_f64()));
 }
+
+/// Runs `unshear ARGS`, returning (exit code, stdout JSON lines, stderr).
+fn run_json(args: &[&std::ffi::OsStr]) -> (i32, Vec<serde_json::Value>, String) {
+    let out = Command::cargo_bin("unshear")
+        .expect("binary")
+        .args(args)
+        .timeout(std::time::Duration::from_secs(60))
+        .output()
+        .expect("runs");
+    let lines = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("JSON line"))
+        .collect();
+    (
+        out.status.code().unwrap_or(-1),
+        lines,
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn lying_extensions_are_read_by_content_both_ways() {
+    let dir = tempfile::tempdir().expect("temp");
+    let img = image::open(fixture()).expect("fixture");
+    // JPEG bytes named .png, BMP bytes named .webp, PGM bytes named .tif.
+    let cases = [
+        ("jpeg-named.png", image::ImageFormat::Jpeg),
+        ("bmp-named.webp", image::ImageFormat::Bmp),
+        ("pgm-named.tif", image::ImageFormat::Pnm),
+    ];
+    let mut paths = Vec::new();
+    for (name, format) in cases {
+        let path = dir.path().join(name);
+        let img = if format == image::ImageFormat::Pnm {
+            image::DynamicImage::ImageLuma8(img.to_luma8())
+        } else {
+            img.clone()
+        };
+        img.save_with_format(&path, format).expect("save");
+        paths.push(path);
+    }
+    let lines = estimate_ok(&paths.iter().map(PathBuf::as_path).collect::<Vec<_>>());
+    assert_eq!(lines.len(), 3);
+    for (line, (name, _)) in lines.iter().zip(cases) {
+        assert!(line["k"].is_f64(), "{name} decoded by content: {line}");
+    }
+    // `correct` writes the format of the *output* name: a .png output of JPEG-named-.png input is
+    // a real PNG.
+    let out = dir.path().join("fixed.png");
+    Command::cargo_bin("unshear")
+        .expect("binary")
+        .arg("correct")
+        .arg(&paths[0])
+        .arg("-o")
+        .arg(&out)
+        .assert()
+        .success();
+    assert!(std::fs::read(&out)
+        .expect("output")
+        .starts_with(b"\x89PNG\r\n\x1a\n"));
+    // Text named .jpg: one clear line, not a panic.
+    let text = dir.path().join("notes.jpg");
+    std::fs::write(&text, "shopping list: eggs, milk\n").expect("write");
+    let message = check_bad(&text);
+    assert!(
+        message.to_lowercase().contains("format"),
+        "says the format is not recognised: {message}"
+    );
+}
+
+/// CMYK to ink amounts (C, M, Y, K), 0 = no ink, as print workflows store them.
+fn rgb_to_cmyk(p: &image::Rgb<u8>) -> [u8; 4] {
+    let [r, g, b] = p.0.map(|v| f64::from(v) / 255.0);
+    let k = 1.0 - r.max(g).max(b);
+    if k >= 1.0 {
+        return [0, 0, 0, 255];
+    }
+    let ink = |v: f64| ((1.0 - v - k) / (1.0 - k) * 255.0).round() as u8;
+    [ink(r), ink(g), ink(b), (k * 255.0).round() as u8]
+}
+
+#[test]
+fn cmyk_and_ycck_jpegs_are_converted_to_rgb() {
+    // Photoshop-style CMYK and YCCK JPEGs (Adobe APP14 marker, inverted samples), as print
+    // workflows and some scanners write them. The `image` crate's decoder converts both to RGB;
+    // this test pins that down, so a decoder change that dropped or mangled them would show.
+    let dir = tempfile::tempdir().expect("temp");
+    let rgb = image::open(fixture()).expect("fixture").to_rgb8();
+    let (w, h) = rgb.dimensions();
+    let cmyk: Vec<u8> = rgb.pixels().flat_map(rgb_to_cmyk).collect();
+    let mut paths = Vec::new();
+    for (color, name) in [
+        (jpeg_encoder::ColorType::Cmyk, "cmyk.jpg"),
+        (jpeg_encoder::ColorType::CmykAsYcck, "ycck.jpg"),
+    ] {
+        let path = dir.path().join(name);
+        jpeg_encoder::Encoder::new_file(&path, 95)
+            .expect("create")
+            .encode(&cmyk, w as u16, h as u16, color)
+            .expect("encode");
+        let back = unshear::imageio::read_image(&path, unshear::imageio::DEFAULT_MAX_PIXELS)
+            .expect("CMYK decodes");
+        assert_eq!(back.color(), image::ColorType::Rgb8, "{name}");
+        assert_eq!((back.width(), back.height()), (w, h));
+        // Colours come back: quality-95 JPEG of a smooth photo stays within a few grey levels on
+        // average (inverted or unconverted CMYK would be off by ~100).
+        let back = back.to_rgb8();
+        let diff: f64 = back
+            .as_raw()
+            .iter()
+            .zip(rgb.as_raw())
+            .map(|(a, b)| f64::from(a.abs_diff(*b)))
+            .sum::<f64>()
+            / rgb.as_raw().len() as f64;
+        assert!(diff < 4.0, "{name}: mean difference {diff:.2} levels");
+        paths.push(path);
+    }
+    let mut all: Vec<&Path> = paths.iter().map(PathBuf::as_path).collect();
+    let original = fixture();
+    all.push(&original);
+    let lines = estimate_ok(&all);
+    let k = |i: usize| lines[i]["k"].as_f64().expect("face found");
+    // The same face in CMYK gives the RGB estimate, up to JPEG noise moving a peak by a pixel
+    // (about 0.02 in k at this face size).
+    assert!(
+        (k(0) - k(2)).abs() < 0.03 && (k(1) - k(2)).abs() < 0.03,
+        "{lines:?}"
+    );
+}
+
+/// A PNG chunk with a correct CRC.
+fn png_chunk(kind: &[u8; 4], data: &[u8]) -> Vec<u8> {
+    let mut crc = !0u32;
+    for &b in kind.iter().chain(data) {
+        crc ^= u32::from(b);
+        for _ in 0..8 {
+            crc = if crc & 1 != 0 {
+                (crc >> 1) ^ 0xEDB8_8320
+            } else {
+                crc >> 1
+            };
+        }
+    }
+    let mut c = (data.len() as u32).to_be_bytes().to_vec();
+    c.extend_from_slice(kind);
+    c.extend_from_slice(data);
+    c.extend_from_slice(&(!crc).to_be_bytes());
+    c
+}
+
+#[test]
+fn corrupt_pngs_bad_crc_bad_idat_and_a_bomb() {
+    let dir = tempfile::tempdir().expect("temp");
+    let good = dir.path().join("good.png");
+    image::open(fixture())
+        .expect("fixture")
+        .to_luma8()
+        .save(&good)
+        .expect("save");
+    let bytes = std::fs::read(&good).expect("read");
+    let idat = bytes
+        .windows(4)
+        .position(|w| w == b"IDAT")
+        .expect("IDAT chunk");
+    // A flipped bit inside the first IDAT's data: the deflate stream breaks (the decoder reports
+    // that before it reaches the chunk's CRC).
+    let mut bad_data = bytes.clone();
+    bad_data[idat + 40] ^= 0x10;
+    let bad_data_path = dir.path().join("bad-data.png");
+    std::fs::write(&bad_data_path, &bad_data).expect("write");
+    check_bad(&bad_data_path);
+    // Intact data but a wrong CRC stored after it.
+    let idat_len = u32::from_be_bytes(bytes[idat - 4..idat].try_into().expect("4 bytes")) as usize;
+    let mut bad_crc = bytes.clone();
+    bad_crc[idat + 4 + idat_len] ^= 0x01;
+    let bad_crc_path = dir.path().join("bad-crc.png");
+    std::fs::write(&bad_crc_path, &bad_crc).expect("write");
+    let message = check_bad(&bad_crc_path);
+    assert!(message.to_lowercase().contains("crc"), "{message}");
+    // An IDAT with a valid CRC but garbage instead of zlib data.
+    let idat_start = idat - 4;
+    let mut bad_zlib = bytes[..idat_start].to_vec();
+    bad_zlib.extend(png_chunk(b"IDAT", &[0xde, 0xad, 0xbe, 0xef, 1, 2, 3, 4]));
+    bad_zlib.extend(png_chunk(b"IEND", &[]));
+    let bad_zlib_path = dir.path().join("bad-zlib.png");
+    std::fs::write(&bad_zlib_path, &bad_zlib).expect("write");
+    check_bad(&bad_zlib_path);
+    // Cut inside IDAT.
+    let cut_path = dir.path().join("cut-idat.png");
+    std::fs::write(&cut_path, &bytes[..idat + 100]).expect("write");
+    check_bad(&cut_path);
+    // A decompression bomb: 57 bytes that declare 100000 x 100000 RGB (30 GB decoded). Refused
+    // from the header alone, before any allocation, with the size in the message.
+    let mut ihdr = 100_000u32.to_be_bytes().to_vec();
+    ihdr.extend_from_slice(&100_000u32.to_be_bytes());
+    ihdr.extend_from_slice(&[8, 2, 0, 0, 0]);
+    let mut bomb = b"\x89PNG\r\n\x1a\n".to_vec();
+    bomb.extend(png_chunk(b"IHDR", &ihdr));
+    bomb.extend(png_chunk(b"IDAT", &[]));
+    bomb.extend(png_chunk(b"IEND", &[]));
+    let bomb_path = dir.path().join("bomb.png");
+    std::fs::write(&bomb_path, &bomb).expect("write");
+    let message = check_bad(&bomb_path);
+    assert!(message.contains("100000x100000"), "{message}");
+    // --max-pixels lowers the limit: the 320x243 fixture is then too large.
+    let (code, lines, stderr) = run_json(&[
+        "estimate".as_ref(),
+        "--json".as_ref(),
+        "--max-pixels".as_ref(),
+        "10000".as_ref(),
+        fixture().as_os_str(),
+    ]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(lines[0]["error"]
+        .as_str()
+        .expect("error")
+        .contains("over the limit of 10000"));
+}
+
+#[cfg(unix)]
+#[test]
+fn unreadable_files_and_folders() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = tempfile::tempdir().expect("temp");
+    let root = dir.path().join("walk");
+    let locked_dir = root.join("locked");
+    std::fs::create_dir_all(&locked_dir).expect("mkdir");
+    std::fs::copy(fixture(), locked_dir.join("hidden.jpeg")).expect("copy");
+    std::fs::copy(fixture(), root.join("a-good.jpeg")).expect("copy");
+    let locked_file = root.join("b-locked.jpeg");
+    std::fs::copy(fixture(), &locked_file).expect("copy");
+    std::fs::set_permissions(&locked_file, std::fs::Permissions::from_mode(0o000)).expect("chmod");
+    std::fs::set_permissions(&locked_dir, std::fs::Permissions::from_mode(0o000)).expect("chmod");
+    let privileged = std::fs::read(&locked_file).is_ok();
+    let restore = || {
+        let _ = std::fs::set_permissions(&locked_dir, std::fs::Permissions::from_mode(0o755));
+    };
+    if privileged {
+        restore();
+        // Root (as in CI containers) reads through any permission bits, so there is nothing to
+        // test here; written past the harness's capture so the skip shows.
+        let _ = std::io::Write::write_all(
+            &mut std::io::stderr(),
+            b"skipped: unreadable_files_and_folders: running with privileges that ignore file permissions (root)\n",
+        );
+        return;
+    }
+    let (code, lines, stderr) =
+        run_json(&["estimate".as_ref(), "--json".as_ref(), root.as_os_str()]);
+    restore();
+    assert_eq!(code, 1, "{stderr}");
+    // a-good, b-locked (read error), locked/ (walk error); in name order.
+    assert_eq!(lines.len(), 3, "{lines:?}");
+    assert!(lines[0]["k"].is_f64());
+    for line in &lines[1..] {
+        assert!(line["error"].is_string(), "{line}");
+    }
+    assert!(lines[1]["file"]
+        .as_str()
+        .expect("file")
+        .ends_with("b-locked.jpeg"));
+    assert!(lines[2]["file"].as_str().expect("file").ends_with("locked"));
+    assert_eq!(stderr.lines().count(), 2, "one line per failure: {stderr}");
+}
+
+#[cfg(unix)]
+#[test]
+fn a_symlink_loop_given_directly_is_one_error() {
+    // `loop -> loop`: opening it fails with "too many levels of symbolic links" (as root too).
+    let dir = tempfile::tempdir().expect("temp");
+    let link = dir.path().join("loop.jpg");
+    std::os::unix::fs::symlink(&link, &link).expect("symlink");
+    check_bad(&link);
+}
+
+#[test]
+fn every_failure_of_correct_is_a_json_line_naming_the_input() {
+    let dir = tempfile::tempdir().expect("temp");
+    let inputs = dir.path().join("in");
+    std::fs::create_dir(&inputs).expect("mkdir");
+    // a: fine; b: corrupt; c: its output exists already (no --force); d: fine.
+    for name in ["a.jpeg", "c.jpeg", "d.jpeg"] {
+        std::fs::copy(fixture(), inputs.join(name)).expect("copy");
+    }
+    std::fs::write(inputs.join("b.jpeg"), b"\xff\xd8\xff garbage").expect("write");
+    let out = dir.path().join("out");
+    std::fs::create_dir(&out).expect("mkdir");
+    std::fs::write(out.join("c.jpeg"), b"keep me").expect("write");
+    let (code, lines, stderr) = run_json(&[
+        "correct".as_ref(),
+        "--json".as_ref(),
+        inputs.as_os_str(),
+        "--out-dir".as_ref(),
+        out.as_os_str(),
+    ]);
+    assert_eq!(code, 1, "{stderr}");
+    assert_eq!(lines.len(), 4, "{lines:?}");
+    let file = |i: usize| lines[i]["file"].as_str().expect("file").to_string();
+    for (i, name) in ["a.jpeg", "b.jpeg", "c.jpeg", "d.jpeg"].iter().enumerate() {
+        assert!(file(i).ends_with(name), "{}", lines[i]);
+    }
+    assert!(lines[0].get("error").is_none() && lines[3].get("error").is_none());
+    assert!(lines[1]["error"].is_string());
+    assert!(lines[2]["error"]
+        .as_str()
+        .expect("error")
+        .contains("--force"));
+    assert_eq!(
+        std::fs::read(out.join("c.jpeg")).expect("read"),
+        b"keep me",
+        "existing output untouched"
+    );
+    assert_eq!(stderr.lines().count(), 2, "{stderr}");
+    // An output format that cannot be written: also one JSON error line.
+    let (code, lines, _) = run_json(&[
+        "correct".as_ref(),
+        "--json".as_ref(),
+        fixture().as_os_str(),
+        "-o".as_ref(),
+        dir.path().join("out.gif").as_os_str(),
+    ]);
+    assert_eq!(code, 1);
+    assert!(lines[0]["error"]
+        .as_str()
+        .expect("error")
+        .contains("unsupported output format"));
+    // An output folder that cannot be created (a file is in the way).
+    let (code, lines, _) = run_json(&[
+        "correct".as_ref(),
+        "--json".as_ref(),
+        fixture().as_os_str(),
+        "-o".as_ref(),
+        out.join("c.jpeg").join("x.png").as_os_str(),
+    ]);
+    assert_eq!(code, 1);
+    assert!(lines[0]["error"].is_string() && lines[0]["file"].is_string());
+}

@@ -363,7 +363,19 @@ fn scan_scale(data: &CascadeData, gray: &GrayImage, factor: f32) -> Vec<IRect> {
     if sw < ww || sh < wh || 3 * (sw + 1) * (sh + 1) > u32::MAX as usize {
         return Vec::new();
     }
-    let pixels = resize_linear_exact(gray.as_raw(), iw as usize, ih as usize, sw, sh);
+    // At factor 1 the "resize" is a copy (as in OpenCV): read the image itself instead, which
+    // saves a full-size copy at the scale that needs the most memory.
+    let pixels: std::borrow::Cow<'_, [u8]> = if (sw, sh) == (iw as usize, ih as usize) {
+        std::borrow::Cow::Borrowed(gray.as_raw())
+    } else {
+        std::borrow::Cow::Owned(resize_linear_exact(
+            gray.as_raw(),
+            iw as usize,
+            ih as usize,
+            sw,
+            sh,
+        ))
+    };
     let ev = Evaluator::new(data, &pixels, sw, sh);
     // Window positions x in 0..=sw−ww (OpenCV's "working size" is (sw+1) − ww).
     let (nx, ny) = (sw + 1 - ww, sh + 1 - wh);

@@ -5,6 +5,7 @@
 use std::collections::BTreeMap;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc;
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -77,7 +78,10 @@ fn is_image_name(p: &Path) -> bool {
 
 /// Runs `work` on every item in parallel and calls `emit` with each result in item order, as
 /// soon as all earlier items are done. `emit` runs on the calling thread.
-pub fn run_ordered<T, R, W, E>(items: &[T], work: W, mut emit: E)
+///
+/// Once `stop` is set no further item is started; the items already started are finished and
+/// emitted (in order, skipping those never started). Returns how many items were emitted.
+pub fn run_ordered<T, R, W, E>(items: &[T], stop: &AtomicBool, work: W, mut emit: E) -> usize
 where
     T: Sync,
     R: Send,
@@ -85,6 +89,7 @@ where
     E: FnMut(&T, R, &ProgressBar),
 {
     let progress = progress_bar(items.len() as u64);
+    let mut emitted = 0;
     let (tx, rx) = mpsc::channel();
     std::thread::scope(|scope| {
         let work = &work;
@@ -93,6 +98,9 @@ where
                 .par_iter()
                 .enumerate()
                 .for_each_with(tx, |tx, (i, item)| {
+                    if stop.load(Ordering::SeqCst) {
+                        return;
+                    }
                     // The receiver only goes away if the caller panicked; nothing to report then.
                     let _ = tx.send((i, work(item)));
                 });
@@ -104,11 +112,18 @@ where
             while let Some(r) = pending.remove(&next) {
                 emit(&items[next], r, &progress);
                 progress.inc(1);
+                emitted += 1;
                 next += 1;
             }
         }
+        // Stopped early: what finished after a skipped item, still in order.
+        for (i, r) in pending {
+            emit(&items[i], r, &progress);
+            emitted += 1;
+        }
     });
     progress.finish_and_clear();
+    emitted
 }
 
 fn progress_bar(len: u64) -> ProgressBar {
@@ -154,8 +169,9 @@ mod tests {
     fn results_come_back_in_order() {
         let items: Vec<u64> = (0..50).collect();
         let mut seen = Vec::new();
-        run_ordered(
+        let emitted = run_ordered(
             &items,
+            &AtomicBool::new(false),
             |&i| {
                 std::thread::sleep(std::time::Duration::from_micros((50 - i) * 20));
                 i * 2
@@ -163,5 +179,35 @@ mod tests {
             |&i, r, _| seen.push((i, r)),
         );
         assert_eq!(seen, items.iter().map(|&i| (i, i * 2)).collect::<Vec<_>>());
+        assert_eq!(emitted, 50);
+    }
+
+    #[test]
+    fn a_stop_request_ends_the_batch_early_but_reports_what_finished() {
+        let items: Vec<u64> = (0..200).collect();
+        let stop = AtomicBool::new(false);
+        let started = std::sync::atomic::AtomicUsize::new(0);
+        let mut seen = Vec::new();
+        let emitted = run_ordered(
+            &items,
+            &stop,
+            |&i| {
+                started.fetch_add(1, Ordering::SeqCst);
+                if i == 10 {
+                    stop.store(true, Ordering::SeqCst);
+                }
+                std::thread::sleep(std::time::Duration::from_millis(1));
+                i
+            },
+            |&i, r, _| seen.push((i, r)),
+        );
+        let started = started.load(Ordering::SeqCst);
+        // Item 10 and whatever the other threads had started by then; far from all 200.
+        assert!((11..100).contains(&started), "{started} started");
+        assert_eq!(emitted, started);
+        assert_eq!(seen.len(), started);
+        assert!(seen.iter().all(|&(i, r)| i == r));
+        assert!(seen.windows(2).all(|w| w[0].0 < w[1].0), "in order");
+        assert!(seen.iter().any(|&(i, _)| i == 10));
     }
 }

@@ -2,10 +2,11 @@
 //! [`batch`], the JSON line in [`report`]; this file wires them to the library.
 //!
 //! Exit codes: 0 every input handled; 1 some input failed (the others were still processed);
-//! 2 usage error.
+//! 2 usage error; 130 interrupted (see [`interrupt`]).
 
 mod args;
 mod batch;
+mod interrupt;
 mod report;
 mod video;
 
@@ -30,6 +31,11 @@ use unshear::{Shear, Unshear};
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    // Batches stop cleanly after the images in progress; other commands stop at once.
+    interrupt::install(matches!(
+        cli.command,
+        Command::Estimate(_) | Command::Correct(_)
+    ));
     let result = match cli.command {
         Command::Estimate(a) => estimate(a),
         Command::Correct(a) => correct(a),
@@ -42,6 +48,9 @@ fn main() -> ExitCode {
             EvalCommand::Recognition(a) => eval_recognition(a).map(|()| true),
         },
     };
+    if interrupt::requested() {
+        return ExitCode::from(interrupt::EXIT_INTERRUPTED);
+    }
     match result {
         Ok(true) => ExitCode::SUCCESS,
         Ok(false) => ExitCode::from(1),
@@ -117,18 +126,51 @@ fn describe(report: &ImageReport) -> String {
 
 /// One failed input: its JSON line (with `--json`) and one line on stderr naming the file.
 fn report_failure(json: bool, file: &str, error: String, bar: &indicatif::ProgressBar) {
+    let error = one_line(file, &error);
     bar.suspend(|| eprintln!("unshear: {file}: {error}"));
     if json {
         print_line(&JsonLine::error(file, error).to_line());
     }
 }
 
+/// An error message as one line: line breaks and other control characters (some decoders end
+/// their messages with a newline) become spaces, runs of spaces are collapsed, and a leading
+/// `file: ` is dropped since the report names the file already.
+fn one_line(file: &str, message: &str) -> String {
+    let flat = message
+        .split(|c: char| c.is_control() || c.is_whitespace())
+        .filter(|w| !w.is_empty())
+        .collect::<Vec<_>>()
+        .join(" ");
+    match flat.strip_prefix(file).and_then(|m| m.strip_prefix(": ")) {
+        Some(rest) if !rest.is_empty() => rest.to_string(),
+        _ => flat,
+    }
+}
+
+/// An error and its causes as one message, leaving out a cause whose text the message already
+/// contains (the library's errors include their source's text, so `{:#}` would repeat it).
+fn error_chain(e: &anyhow::Error) -> String {
+    let mut message = String::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        if !message.contains(text.trim()) {
+            if !message.is_empty() {
+                message.push_str(": ");
+            }
+            message.push_str(&text);
+        }
+    }
+    message
+}
+
 fn estimate(a: EstimateArgs) -> Result<bool> {
     let unshear = load_models(&a.model)?;
     let inputs = collect_inputs(&a.inputs);
     let mut all_ok = true;
-    run_ordered(
+    let done = run_ordered(
         &inputs,
+        interrupt::flag(),
         |input| -> Result<ImageReport, String> {
             let input = input.as_ref().map_err(|(_, e)| e.clone())?;
             let img =
@@ -150,7 +192,18 @@ fn estimate(a: EstimateArgs) -> Result<bool> {
             }
         },
     );
+    report_interruption(done, inputs.len());
     Ok(all_ok)
+}
+
+/// After a batch: says how many inputs were left out if it was interrupted.
+fn report_interruption(done: usize, total: usize) {
+    if interrupt::requested() {
+        eprintln!(
+            "unshear: interrupted: {done} of {total} inputs processed, {} not started",
+            total.saturating_sub(done)
+        );
+    }
 }
 
 /// Where the corrected image of `input` goes.
@@ -224,6 +277,8 @@ fn correct_one(
         return Ok(Corrected::NoFace(report));
     }
     let fixed = unshear.correct(&img, &report, &options)?;
+    // The input is not needed any more: free it before encoding (peak memory, see README).
+    drop(img);
     if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(parent)
             .with_context(|| format!("creating {}", parent.display()))?;
@@ -269,11 +324,12 @@ fn correct(a: CorrectArgs) -> Result<bool> {
         .filter_map(|i| i.as_ref().ok().map(|i| i.path.clone()))
         .collect();
     let mut all_ok = true;
-    run_ordered(
+    let done = run_ordered(
         &inputs,
+        interrupt::flag(),
         |input| -> Result<Corrected, String> {
             let input = input.as_ref().map_err(|(_, e)| e.clone())?;
-            correct_one(&a, &unshear, input, &protected).map_err(|e| format!("{e:#}"))
+            correct_one(&a, &unshear, input, &protected).map_err(|e| error_chain(&e))
         },
         |input, result, bar| {
             let file = match input {
@@ -305,6 +361,7 @@ fn correct(a: CorrectArgs) -> Result<bool> {
             }
         },
     );
+    report_interruption(done, inputs.len());
     Ok(all_ok)
 }
 
@@ -475,4 +532,37 @@ fn eval_recognition(a: EvalRecognitionArgs) -> Result<()> {
     }
     print!("{}", result.markdown(&a.data.display().to_string()));
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn failure_messages_are_one_line_without_the_file_twice() {
+        assert_eq!(
+            one_line("a/b.jpg", "a/b.jpg: Format error\nNot enough bytes\n"),
+            "Format error Not enough bytes"
+        );
+        assert_eq!(
+            one_line("a/b.jpg", "refusing to write c.jpg: it exists"),
+            "refusing to write c.jpg: it exists"
+        );
+        assert_eq!(one_line("x", "x: "), "x:");
+    }
+
+    #[test]
+    fn error_chains_leave_out_repeated_causes() {
+        let io = std::io::Error::other("disk full");
+        let lib = unshear::Error::Io {
+            path: "out.png".into(),
+            source: io,
+        };
+        let e = anyhow::Error::new(lib).context("writing the output");
+        assert_eq!(
+            error_chain(&e),
+            "writing the output: out.png: disk full",
+            "the library error already holds its source's text"
+        );
+    }
 }

@@ -35,9 +35,15 @@ pub struct JsonLine {
 }
 
 /// Rounds to 4 decimals: sub-pixel positions and k to 1e-4 are more than the method resolves,
-/// and short lines are easier to read.
+/// and short lines are easier to read. Values too large to scale are kept as they are (rounding
+/// through infinity would turn them into `null`); NaN and infinities print as `null`.
 pub fn r4(v: f64) -> f64 {
-    (v * 1e4).round() / 1e4
+    let scaled = v * 1e4;
+    if scaled.is_finite() {
+        scaled.round() / 1e4
+    } else {
+        v
+    }
 }
 
 fn pt(p: Point) -> [f64; 2] {
@@ -93,5 +99,100 @@ pub fn face(f: &FaceReport) -> JsonFace {
         k_measured: r4(f.k_measured),
         roll: (f.roll_degrees * 100.0).round() / 100.0,
         confidence: r4(f.confidence),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+    use unshear::Rect;
+
+    fn number() -> impl Strategy<Value = f64> {
+        prop_oneof![
+            any::<f64>(),
+            Just(f64::NAN),
+            Just(f64::INFINITY),
+            Just(f64::NEG_INFINITY),
+            Just(f64::MAX),
+            Just(-0.0),
+            -1e4f64..1e4,
+        ]
+    }
+
+    fn face() -> impl Strategy<Value = FaceReport> {
+        (
+            prop::array::uniform16(number()),
+            prop::array::uniform2(number()),
+        )
+            .prop_map(|(v, w)| FaceReport {
+                face_box: Rect::new(v[0], v[1], v[2], v[3]),
+                right_eye: Point { x: v[4], y: v[5] },
+                left_eye: Point { x: v[6], y: v[7] },
+                right_nostril: Point { x: v[8], y: v[9] },
+                left_nostril: Point { x: v[10], y: v[11] },
+                k: v[12],
+                confidence: v[13],
+                psr: [v[14], v[15], w[0], w[1]],
+            })
+    }
+
+    /// The value printed for `v`: `null` for NaN and infinities, otherwise `v` to 1e-4.
+    fn check_number(printed: &serde_json::Value, v: f64) -> Result<(), TestCaseError> {
+        if v.is_finite() {
+            let p = printed
+                .as_f64()
+                .ok_or_else(|| TestCaseError::fail(format!("{v} -> {printed}")))?;
+            prop_assert!((p - v).abs() <= 0.5e-4 + v.abs() * 1e-15, "{} -> {}", v, p);
+        } else {
+            prop_assert!(printed.is_null(), "{} -> {}", v, printed);
+        }
+        Ok(())
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 256, failure_persistence: None, ..ProptestConfig::default() })]
+
+        /// Any report, any file name (control characters, quotes, any Unicode) and any error
+        /// message give one line of valid JSON with the documented fields.
+        #[test]
+        fn json_line_always_parses(
+            file in any::<String>(),
+            k in prop::option::of(number()),
+            faces in prop::collection::vec(face(), 0..3),
+            error in prop::option::of(any::<String>()),
+        ) {
+            let report = ImageReport { k, faces: faces.clone(), width: 10, height: 10 };
+            let line = match &error {
+                None => JsonLine::ok(&file, &report),
+                Some(e) => JsonLine::error(&file, e.clone()),
+            }
+            .to_line();
+            prop_assert!(!line.contains('\n'), "one line");
+            let v: serde_json::Value = serde_json::from_str(&line)
+                .map_err(|e| TestCaseError::fail(format!("{e}: {line}")))?;
+            prop_assert_eq!(v["file"].as_str(), Some(file.as_str()));
+            match &error {
+                Some(e) => {
+                    prop_assert_eq!(v["error"].as_str(), Some(e.as_str()));
+                    prop_assert!(v["k"].is_null());
+                }
+                None => {
+                    prop_assert!(v.get("error").is_none());
+                    match k {
+                        Some(k) => check_number(&v["k"], k)?,
+                        None => prop_assert!(v["k"].is_null()),
+                    }
+                    let printed = v["faces"].as_array().ok_or_else(|| TestCaseError::fail("faces"))?;
+                    prop_assert_eq!(printed.len(), faces.len());
+                    for (p, f) in printed.iter().zip(&faces) {
+                        check_number(&p["k"], f.k)?;
+                        check_number(&p["confidence"], f.confidence)?;
+                        check_number(&p["box"][2], f.face_box.width)?;
+                        check_number(&p["left_nostril"][1], f.left_nostril.y)?;
+                    }
+                }
+            }
+        }
     }
 }
