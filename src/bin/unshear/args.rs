@@ -35,9 +35,12 @@ pub struct ModelArgs {
     /// OpenCV Haar cascade XML to detect faces with [default: built-in frontalface_alt2].
     #[arg(long, value_name = "FILE")]
     pub cascade: Option<PathBuf>,
-    /// Filter file made by `unshear train` [default: built-in].
+    /// Filter file made by `unshear train` (its own type is used) [default: built-in].
     #[arg(long, value_name = "PATH")]
     pub filters: Option<PathBuf>,
+    /// Which built-in filter set to use [default: the built-in default type].
+    #[arg(long, value_enum, value_name = "TYPE", conflicts_with = "filters")]
+    pub filter_type: Option<FilterTypeArg>,
     /// Refuse images with more pixels than this (checked before decoding).
     #[arg(long, value_name = "N", default_value_t = unshear::imageio::DEFAULT_MAX_PIXELS)]
     pub max_pixels: u64,
@@ -150,6 +153,9 @@ pub struct TrainArgs {
     /// them, as the built-in filters were trained).
     #[arg(long)]
     pub no_mirror: bool,
+    /// Which filters to synthesise [default: the built-in default type].
+    #[arg(long, value_enum, value_name = "TYPE")]
+    pub filter_type: Option<FilterTypeArg>,
     /// Output filter file.
     #[arg(short = 'o', long = "output", value_name = "PATH")]
     pub output: PathBuf,
@@ -249,6 +255,27 @@ pub struct EvalRecognitionArgs {
     pub grid: usize,
     #[command(flatten)]
     pub model: ModelArgs,
+}
+
+/// `--filter-type`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum FilterTypeArg {
+    /// UMACE (the paper's): whitened average of centred features.
+    Umace,
+    /// ASEF: average of exact filters mapping each crop to a Gaussian peak at its feature.
+    Asef,
+    /// MOSSE: least-squares filter mapping all crops to Gaussian peaks at their features.
+    Mosse,
+}
+
+impl From<FilterTypeArg> for unshear::filters::FilterType {
+    fn from(t: FilterTypeArg) -> Self {
+        match t {
+            FilterTypeArg::Umace => Self::Umace,
+            FilterTypeArg::Asef => Self::Asef,
+            FilterTypeArg::Mosse => Self::Mosse,
+        }
+    }
 }
 
 /// `--region`.
