@@ -1,6 +1,6 @@
 //! Correlation filters in the frequency domain: three synthesis methods — UMACE ([`umace`]),
 //! ASEF ([`asef`]) and MOSSE ([`mosse`]) — one [`FilterTrainer`] front for all three
-//! ([`trainer`]), the versioned filter file ([`file`]), and FFT correlation with peak and
+//! ([`trainer`]), the versioned filter file ([`mod@file`]), and FFT correlation with peak and
 //! peak-to-sidelobe ratio ([`correlate`]).
 //!
 //! All filters here are square, `size x size` (64 for the eye filters, as the paper), stored as
