@@ -41,6 +41,10 @@ pub enum Error {
     /// A correlation-filter file is malformed, truncated or of an unknown version.
     #[error("filter file: {0}")]
     FilterFile(String),
+    /// A filter file names a filter type this build does not know (codes 1-3 are UMACE, ASEF,
+    /// MOSSE).
+    #[error("filter file: unknown filter type code {0}")]
+    UnknownFilterType(u32),
     /// A training data set is missing, malformed or too small.
     #[error("training data: {0}")]
     Training(String),

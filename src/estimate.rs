@@ -345,10 +345,22 @@ mod tests {
 
     #[test]
     fn unusable_geometry_gives_none() {
-        assert_eq!(shear_and_roll(Point::new(60.0, 0.0), Point::new(3.0, 2.0)), None);
-        assert_eq!(shear_and_roll(Point::new(60.0, 0.0), Point::new(3.0, -40.0)), None);
-        assert_eq!(shear_and_roll(Point::new(-60.0, 0.0), Point::new(3.0, 40.0)), None);
-        assert_eq!(shear_and_roll(Point::new(f64::NAN, 0.0), Point::new(3.0, 40.0)), None);
+        assert_eq!(
+            shear_and_roll(Point::new(60.0, 0.0), Point::new(3.0, 2.0)),
+            None
+        );
+        assert_eq!(
+            shear_and_roll(Point::new(60.0, 0.0), Point::new(3.0, -40.0)),
+            None
+        );
+        assert_eq!(
+            shear_and_roll(Point::new(-60.0, 0.0), Point::new(3.0, 40.0)),
+            None
+        );
+        assert_eq!(
+            shear_and_roll(Point::new(f64::NAN, 0.0), Point::new(3.0, 40.0)),
+            None
+        );
         // A 45 degree "roll" is outside what a frontal face detector returns.
         let (e, v) = posed(0.0, 45f64.to_radians(), 0.0);
         assert_eq!(shear_and_roll(e, v), None);
@@ -370,7 +382,9 @@ mod tests {
         let face = |k: f64, roll_deg: f64| {
             let (s, c) = roll_deg.to_radians().sin_cos();
             let shear = Shear::new(k, 0.0);
-            let at = |x: f64, y: f64| shear.apply(Point::new(100.0 + c * x - s * y, 80.0 + s * x + c * y));
+            let at = |x: f64, y: f64| {
+                shear.apply(Point::new(100.0 + c * x - s * y, 80.0 + s * x + c * y))
+            };
             FeatureGeometry {
                 right_eye: at(-30.0, 0.0),
                 left_eye: at(30.0, 0.0),
@@ -380,17 +394,27 @@ mod tests {
                 mouth: Some(at(0.0, 66.0)),
             }
         };
-        for model in [ShearModel::Equation5, ShearModel::ShearRoll, ShearModel::ShearRollYaw] {
+        for model in [
+            ShearModel::Equation5,
+            ShearModel::ShearRoll,
+            ShearModel::ShearRollYaw,
+        ] {
             let e = estimate_face(&face(0.3, 0.0), model).expect("usable");
             assert!((e.k - 0.3).abs() < 1e-9, "{model:?}: {e:?}");
         }
         let rolled = face(0.3, 12.0);
         let eq5 = estimate_face(&rolled, ShearModel::Equation5).expect("usable");
-        assert!((eq5.k - 0.3).abs() > 0.1, "equation 5 reads roll as shear: {eq5:?}");
+        assert!(
+            (eq5.k - 0.3).abs() > 0.1,
+            "equation 5 reads roll as shear: {eq5:?}"
+        );
         for model in [ShearModel::ShearRoll, ShearModel::ShearRollYaw] {
             let e = estimate_face(&rolled, model).expect("usable");
             assert!((e.k - 0.3).abs() < 1e-9, "{model:?}: {e:?}");
-            assert!((e.roll - 12f64.to_radians()).abs() < 1e-9, "{model:?}: {e:?}");
+            assert!(
+                (e.roll - 12f64.to_radians()).abs() < 1e-9,
+                "{model:?}: {e:?}"
+            );
         }
         let mut no_mouth = rolled;
         no_mouth.mouth = None;

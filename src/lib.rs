@@ -13,7 +13,8 @@
 //!
 //! * [`imageio`]: read (EXIF orientation applied, size-limited) and write (atomic, never over an input).
 //! * [`detect`]: OpenCV-compatible Viola-Jones face detection on Haar cascades.
-//! * [`filters`]: UMACE correlation filters: synthesis, file format, frequency-domain correlation.
+//! * [`filters`]: correlation filters (UMACE, ASEF, MOSSE): synthesis, file format, frequency-domain
+//!   correlation.
 //! * [`features`]: eyes and nostrils located in the 150-px face with the filters.
 //! * [`estimate`]: the shear `k` from the feature points (equation 5).
 //! * [`warp`]: sub-pixel row shifts that apply or undo a shear (equation 6).

@@ -24,9 +24,10 @@ use serde::Serialize;
 use crate::annotate::FaceMarks;
 use crate::detect::FaceDetector;
 use crate::error::{Error, Result};
-use crate::estimate::{estimate_face, FeatureGeometry, ShearModel};
+use crate::estimate::{estimate_face, FaceEstimate, FeatureGeometry, ShearModel};
 use crate::features::{
-    FacePoints, FeatureLocator, NormalizedFace, LEFT_EYE_IN_BOX, RIGHT_EYE_IN_BOX,
+    FacePoints, FeatureLocator, NormalizedFace, EYE_DISTANCE_PER_BOX_WIDTH, LEFT_EYE_IN_BOX,
+    RIGHT_EYE_IN_BOX,
 };
 use crate::filters::{Correlator, EyeFilters};
 use crate::geometry::{Point, Rect, Shear};
@@ -180,7 +181,11 @@ impl Unshear {
     /// [`DEFAULT_SHEAR_HYPOTHESES`]); empty: the paper's single detection pass. Non-finite values
     /// are ignored.
     pub fn set_shear_hypotheses(&mut self, hypotheses: &[f64]) {
-        self.shear_hypotheses = hypotheses.iter().copied().filter(|k| k.is_finite()).collect();
+        self.shear_hypotheses = hypotheses
+            .iter()
+            .copied()
+            .filter(|k| k.is_finite())
+            .collect();
     }
 
     /// Detects the faces in `gray`: first in the image as it is; when that finds none, in the
@@ -331,7 +336,11 @@ impl Unshear {
 
     /// Locates the features in one detected face, starting from the view its detection was made
     /// in, and estimates its shear.
-    pub fn estimate_detection(&self, gray: &GrayImage, detection: &Detection) -> Option<FaceReport> {
+    pub fn estimate_detection(
+        &self,
+        gray: &GrayImage,
+        detection: &Detection,
+    ) -> Option<FaceReport> {
         self.estimate_face_in_view(gray, detection.face_box, detection.view_k)
     }
 
@@ -385,7 +394,7 @@ impl Unshear {
             points.psr[3],
             points.mouth_psr,
         ];
-        let confidence = confidence(&points, &estimate);
+        let confidence = confidence(&points, &estimate, face_box);
         Some(FaceReport {
             face_box,
             right_eye: points.right_eye,
@@ -467,18 +476,91 @@ fn geometry(p: &FacePoints) -> FeatureGeometry {
     }
 }
 
-/// Default for [`Unshear::set_min_confidence`].
-pub const DEFAULT_MIN_CONFIDENCE: f64 = 0.0;
+/// Default for [`Unshear::set_min_confidence`]: refuses the least trustworthy quarter of the
+/// estimates on web photos (see [`confidence`] for what the threshold buys).
+pub const DEFAULT_MIN_CONFIDENCE: f64 = 0.25;
 
-/// A face's confidence, 0 to 1.
-pub fn confidence(points: &FacePoints, _estimate: &crate::estimate::FaceEstimate) -> f64 {
-    let weakest = points.psr.iter().copied().fold(f64::INFINITY, f64::min);
-    (weakest / 4.0).clamp(0.0, 1.0)
+/// Weights of the confidence model (see [`confidence`]), in the order of its features, and the
+/// intercept.
+const CONFIDENCE_WEIGHTS: [f64; 6] = [0.561, 0.389, 1.717, -0.425, -0.574, -0.674];
+const CONFIDENCE_INTERCEPT: f64 = -2.630;
+
+/// A face's confidence, 0 to 1: a logistic model of the chance that its estimate is within 0.10
+/// of the true shear, from how clearly each feature stood out and whether the face's geometry is
+/// consistent:
+///
+/// 1. `ln` of the weaker eye peak's peak-to-sidelobe ratio (PSRs below 0.1 count as 0.1);
+/// 2. `ln` of the weaker nostril peak's PSR;
+/// 3. `ln` of the mouth peak's PSR (0.1 without a mouth filter);
+/// 4. how far the nose's and the mouth's own estimates disagree, `|k_nose - k_mouth|` (0.5 when
+///    either is missing);
+/// 5. the roll, `|degrees| / 10` (frontal faces in photos rarely roll much);
+/// 6. how far the located eye distance over the box width is from the detector's 0.381, times 10.
+///
+/// Fitted by logistic regression on 797 estimates (the first 300 Caltech development faces with
+/// eyes at least 40 px apart, at k = 0 and +-0.40, the default pipeline at the time); with
+/// two-fold cross-validation by image the model ranks good above bad estimates with an AUC of
+/// 0.79-0.82. The mouth's PSR is the strongest single sign (AUC 0.80 alone), the eyes' next
+/// (0.70). On those estimates, a threshold of 0.3 kept 74% of them with 57% within 0.10 of the
+/// truth (all: 46%), 0.5 kept 45% with 71%, and 0.6 kept 31% with 85%.
+pub fn confidence(points: &FacePoints, estimate: &FaceEstimate, face_box: Rect) -> f64 {
+    let ln = |v: f64| v.max(0.1).ln();
+    let eyes = points.psr[0].min(points.psr[1]);
+    let nostrils = points.psr[2].min(points.psr[3]);
+    let disagreement = match (estimate.k_nose, estimate.k_mouth) {
+        (Some(n), Some(m)) => (n - m).abs(),
+        _ => 0.5,
+    };
+    let ratio = points.right_eye.distance(points.left_eye) / face_box.width.max(1.0);
+    let features = [
+        ln(eyes),
+        ln(nostrils),
+        ln(points.mouth_psr),
+        disagreement,
+        estimate.roll.to_degrees().abs() / 10.0,
+        (ratio - EYE_DISTANCE_PER_BOX_WIDTH).abs() * 10.0,
+    ];
+    let z = CONFIDENCE_INTERCEPT
+        + features
+            .iter()
+            .zip(CONFIDENCE_WEIGHTS)
+            .map(|(x, w)| x * w)
+            .sum::<f64>();
+    let c = 1.0 / (1.0 + (-z).exp());
+    if c.is_finite() {
+        c
+    } else {
+        0.0
+    }
 }
 
-/// The image's shear from its faces' accepted estimates: the median.
+/// The image's shear from its faces' accepted estimates: their confidence-weighted median (the
+/// value where half of the total confidence lies on either side), robust to a minority of faces
+/// whose features were mislocated, and led by the faces the estimator trusts most. Faces with
+/// refused estimates do not count; `None` when no face has an accepted estimate.
 pub fn combined_shear(faces: &[FaceReport]) -> Option<f64> {
-    median(faces.iter().filter_map(|f| f.k).collect())
+    let mut weighted: Vec<(f64, f64)> = faces
+        .iter()
+        .filter_map(|f| Some((f.k?, f.confidence.max(1e-6))))
+        .filter(|(k, w)| k.is_finite() && w.is_finite())
+        .collect();
+    if weighted.is_empty() {
+        return None;
+    }
+    weighted.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let total: f64 = weighted.iter().map(|(_, w)| w).sum();
+    let mut below = 0.0;
+    for (i, &(k, w)) in weighted.iter().enumerate() {
+        below += w;
+        if below > total / 2.0 + 1e-12 {
+            return Some(k);
+        }
+        if (below - total / 2.0).abs() <= 1e-12 {
+            // Exactly half below: midway to the next value, as an ordinary median does.
+            return Some(weighted.get(i + 1).map_or(k, |n| (k + n.0) / 2.0));
+        }
+    }
+    weighted.last().map(|(k, _)| *k)
 }
 
 /// Median of finite values (mean of the middle two for an even count); `None` when empty.
@@ -499,6 +581,49 @@ pub fn median(mut values: Vec<f64>) -> Option<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn face(k: Option<f64>, confidence: f64) -> FaceReport {
+        let p = Point::new(0.0, 0.0);
+        FaceReport {
+            face_box: Rect::new(0.0, 0.0, 10.0, 10.0),
+            right_eye: p,
+            left_eye: p,
+            right_nostril: p,
+            left_nostril: p,
+            mouth: None,
+            k,
+            k_measured: k.unwrap_or(0.9),
+            k_nose: None,
+            k_mouth: None,
+            roll_degrees: 0.0,
+            confidence,
+            psr: [0.0; 5],
+        }
+    }
+
+    #[test]
+    fn combined_shear_is_a_confidence_weighted_median_of_accepted_faces() {
+        assert_eq!(combined_shear(&[]), None);
+        assert_eq!(combined_shear(&[face(None, 0.9)]), None);
+        // Equal weights: the ordinary median.
+        let even = [face(Some(0.1), 0.5), face(Some(0.3), 0.5)];
+        assert!((combined_shear(&even).expect("k") - 0.2).abs() < 1e-12);
+        // One confident face outweighs two doubtful ones that agree with each other.
+        let faces = [
+            face(Some(0.40), 0.9),
+            face(Some(0.05), 0.2),
+            face(Some(0.06), 0.2),
+            face(None, 1.0),
+        ];
+        assert_eq!(combined_shear(&faces), Some(0.40));
+        // Three similar weights: the middle value, whatever the outlier.
+        let faces = [
+            face(Some(0.2), 0.5),
+            face(Some(0.22), 0.6),
+            face(Some(-3.0), 0.55),
+        ];
+        assert_eq!(combined_shear(&faces), Some(0.2));
+    }
 
     #[test]
     fn median_of_odd_even_and_empty() {

@@ -114,7 +114,7 @@ fn faces() -> Vec<GrayImage> {
     [
         "subject01.normal.jpeg",
         "subject03.normal.jpeg",
-        "subject05.normal.jpeg",
+        "subject14.normal.jpeg",
     ]
     .iter()
     .map(|n| {
@@ -139,8 +139,17 @@ fn sheared_face(face: usize, k: f64) -> GrayImage {
         .to_luma8()
 }
 
+/// The measured shear (refused or not: these properties are of the estimator, not of the
+/// confidence threshold).
 fn k_of(img: &GrayImage) -> Option<f64> {
-    unshear().estimate_gray(img).k
+    unshear::pipeline::median(
+        unshear()
+            .estimate_gray(img)
+            .faces
+            .iter()
+            .map(|f| f.k_measured)
+            .collect(),
+    )
 }
 
 /// `img` on a mid-grey canvas `extra` pixels larger in each direction, at `(dx, dy)`.
@@ -151,17 +160,19 @@ fn placed(img: &GrayImage, extra: u32, dx: u32, dy: u32) -> GrayImage {
 }
 
 /// Worst change of the estimate seen under translation, over the 15 sheared faces of
-/// `estimate_is_invariant_on_a_grid` and 5 offsets each (0.16: one face whose nostril peak moves
-/// to a neighbouring maximum when the detector's box shifts by a few pixels), rounded up.
+/// `estimate_is_invariant_on_a_grid` and 5 offsets each (0.16 with equation 5: one face whose
+/// nostril peak moves to a neighbouring maximum when the detector's box shifts by a few pixels;
+/// 0.110 with the shear-roll-yaw model), rounded up.
 const TRANSLATION_TOLERANCE: f64 = 0.2;
-/// Worst change seen under x2 enlargement on the same faces (0.046), rounded up.
-const SCALE_TOLERANCE: f64 = 0.08;
-/// Worst `|k + k_mirrored|` seen on the same faces (0.18, the same face as the translation
-/// outlier), rounded up. The filters are trained mirror-augmented, so left and right are treated
+/// Worst change seen under x2 enlargement on the same faces, rounded up: 0.046 with equation 5,
+/// 0.102 with the shear-roll-yaw model (the mouth peak of one face moves with the resampling).
+const SCALE_TOLERANCE: f64 = 0.12;
+/// Worst `|k + k_mirrored|` seen on the same faces (0.18 with equation 5, the same face as the
+/// translation outlier; 0.138 with the shear-roll-yaw model), rounded up. The filters are trained mirror-augmented, so left and right are treated
 /// alike; what is left is detector and peak noise.
 const MIRROR_TOLERANCE: f64 = 0.2;
 /// Median change over the grid: the typical case, far tighter than the worst one (measured
-/// medians 0.009 to 0.020).
+/// medians 0.009 to 0.021).
 const MEDIAN_TOLERANCE: f64 = 0.03;
 
 fn estimate_config() -> ProptestConfig {

@@ -5,29 +5,38 @@ use std::path::PathBuf;
 
 use unshear::dataset::{CaltechWebFaces, FaceDataset};
 use unshear::eval::{evaluate_shear, ShearEvalOptions};
+use unshear::filters::FilterType;
 use unshear::Unshear;
 
 mod common;
 use common::shared_data as shared;
 
-/// `unshear train` is deterministic and the committed filters are what it makes.
+/// `unshear train` is deterministic and the committed filters of every type are what it makes
+/// (`models/eye_filters_{umace,asef,mosse}.bin`, see models/README.md).
 #[test]
 fn retraining_reproduces_the_committed_filters() {
     let Some(root) = shared("caltech-webfaces") else {
         return;
     };
     let faces = CaltechWebFaces::new(root).faces().expect("annotations");
-    let (filters, summary) =
-        unshear::train::train_eye_filters(faces, &Default::default()).expect("training");
-    assert!(summary.unreadable.is_empty(), "{:?}", summary.unreadable);
-    assert!(filters.right_eye.training_count >= 1500);
-    let committed =
-        std::fs::read(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("models/eye_filters.bin"))
+    for kind in FilterType::ALL {
+        let options = unshear::train::TrainOptions {
+            filter_type: kind,
+            ..Default::default()
+        };
+        let (filters, summary) =
+            unshear::train::train_eye_filters(faces.clone(), &options).expect("training");
+        assert!(summary.unreadable.is_empty(), "{:?}", summary.unreadable);
+        assert!(summary.crops >= 1500);
+        assert_eq!(filters.kind, kind);
+        let name = format!("models/eye_filters_{kind}.bin");
+        let committed = std::fs::read(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(&name))
             .expect("committed filters");
-    assert!(
-        filters.to_bytes() == committed,
-        "retrained filters differ from models/eye_filters.bin"
-    );
+        assert!(
+            filters.to_bytes() == committed,
+            "retrained {kind} filters differ from {name}"
+        );
+    }
 }
 
 /// A small slice of the shear evaluation: on the first 60 Caltech faces with an eye distance of

@@ -95,9 +95,16 @@ fn y4m_bytes(frames: &[(GrayImage, f64)]) -> Vec<u8> {
     w.finish().expect("flush")
 }
 
+/// The corrector as `unshear video` sets it up by default (equation 5: the steadiest per frame).
+fn video_unshear() -> Unshear {
+    let mut unshear = Unshear::with_defaults().expect("models");
+    unshear.set_model(unshear::estimate::ShearModel::Equation5);
+    unshear
+}
+
 /// Runs the whole pipeline over the y4m bytes; returns per-frame results and output frames.
 fn process(bytes: &[u8], options: ProcessOptions) -> (Vec<FrameResult>, Vec<u8>) {
-    let unshear = Unshear::with_defaults().expect("models");
+    let unshear = video_unshear();
     let mut reader = Y4mReader::new(bytes, 1 << 24).expect("stream");
     let mut writer = Y4mWriter::with_header(Vec::new(), reader.header()).expect("header");
     let mut processor = VideoProcessor::new(&unshear, options);
@@ -128,7 +135,7 @@ fn filtered_k_follows_the_pan() {
     }
     // The face's own asymmetry: the estimate of the still, unsheared scene (what equation 5
     // reads on this face without any shear; no temporal filter can remove it).
-    let unshear = Unshear::with_defaults().expect("models");
+    let unshear = video_unshear();
     let mut still = GrayImage::from_pixel(W, H, Luma([110]));
     let face = unshear::imageio::read_image(
         &common::fixture("subject01.normal.jpeg"),
@@ -229,7 +236,7 @@ fn y4m_round_trips_byte_exactly_without_correction() {
         correct: false,
         ..Default::default()
     };
-    let unshear = Unshear::with_defaults().expect("models");
+    let unshear = video_unshear();
     let mut reader = Y4mReader::new(bytes.as_slice(), 1 << 24).expect("stream");
     let mut writer = Y4mWriter::with_header(Vec::new(), reader.header()).expect("header");
     let mut processor = VideoProcessor::new(&unshear, options);
@@ -307,10 +314,13 @@ fn command_line_json_folders_and_errors() {
             "box",
             "confidence",
             "k",
+            "k_measured",
             "left_eye",
             "left_nostril",
+            "mouth",
             "right_eye",
-            "right_nostril"
+            "right_nostril",
+            "roll"
         ]
     );
 
@@ -373,7 +383,7 @@ fn command_line_json_folders_and_errors() {
 #[test]
 fn image_frames_are_corrected_like_images() {
     let frames: Vec<_> = clip().into_iter().take(2).collect();
-    let unshear = Unshear::with_defaults().expect("models");
+    let unshear = video_unshear();
     let mut processor = VideoProcessor::new(&unshear, ProcessOptions::default());
     let img = DynamicImage::ImageLuma8(frames[0].0.clone());
     let (out, r) = processor

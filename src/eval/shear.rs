@@ -212,8 +212,7 @@ fn run_one(
                 k_nose: report.and_then(|d| d.k_nose),
                 k_mouth: report.and_then(|d| d.k_mouth),
                 psr: report.map(|d| d.psr),
-                eye_box_ratio: report
-                    .map(|d| d.right_eye.distance(d.left_eye) / d.face_box.width),
+                eye_box_ratio: report.map(|d| d.right_eye.distance(d.left_eye) / d.face_box.width),
                 eye_error: report
                     .map(|d| d.right_eye.distance(re).max(d.left_eye.distance(le)) / ed),
                 oracle,
@@ -329,6 +328,41 @@ impl ShearEvalResult {
                 share(0.05),
                 share(0.10),
                 share(0.25)
+            );
+        }
+        let _ = writeln!(
+            s,
+            "\nConfidence and refusal per shear (*measured*: faces with an estimate, refused or not; *refused*: below the confidence threshold, reported as `k: null`; *wrong but accepted*: accepted estimates more than 0.10 off; *tracking slope*: median over faces of (measured at k - measured at 0) / k):\n\n| true k | measured | refused | accepted within 0.05 | wrong but accepted | tracking slope |\n|---:|---:|---:|---:|---:|---:|"
+        );
+        for &k in &self.shears {
+            let at = self.at(k);
+            let measured = at.iter().filter(|s| s.measured.is_some()).count();
+            let refused = at
+                .iter()
+                .filter(|s| s.measured.is_some() && s.estimate.is_none())
+                .count();
+            let accepted_err: Vec<f64> = at
+                .iter()
+                .filter_map(|s| s.estimate.map(|e| (e - k).abs()))
+                .collect();
+            let slope = (k != 0.0).then(|| {
+                median(
+                    at.iter()
+                        .filter_map(|s| {
+                            let z = zero
+                                .iter()
+                                .find(|z| z.image == s.image && z.face == s.face)?;
+                            Some((s.measured? - z.measured?) / k)
+                        })
+                        .collect(),
+                )
+            });
+            let _ = writeln!(
+                s,
+                "| {k:+.2} | {measured} | {refused} | {} | {} | {} |",
+                accepted_err.iter().filter(|&&e| e <= 0.05).count(),
+                accepted_err.iter().filter(|&&e| e > 0.10).count(),
+                slope.flatten().map_or("-".into(), |v| format!("{v:.3}")),
             );
         }
         let located: Vec<f64> = self.samples.iter().filter_map(|s| s.eye_error).collect();

@@ -5,8 +5,8 @@
 //! | bytes | field |
 //! |---|---|
 //! | 8 | magic `UNSHEARF` |
-//! | 4 | format version, `1` |
-//! | 4 | filter kind, `1` = UMACE |
+//! | 4 | format version, `2` (`1` is still read) |
+//! | 4 | filter type: `1` = UMACE, `2` = ASEF, `3` = MOSSE ([`FilterType::code`]) |
 //! | 4 | side `n` of each square filter (8 to 256) |
 //! | 4 | face width the filters were trained at, pixels (150) |
 //! | 4 | number of filters: `3` (the subject's right eye, the left eye, the nose) or `4` (and the mouth) |
@@ -15,19 +15,23 @@
 //!
 //! Writing the same filters gives the same bytes, so a retrained file can be compared with the
 //! committed one byte for byte.
+//!
+//! **Versions.** Version 1 had the same layout but only type 1; it is read as UMACE, and a
+//! version-1 file naming another type is rejected. Version 2 admits ASEF and MOSSE, and marks
+//! filters trained on OpenCV-weighted grey (the grey the detector and the locator see at run
+//! time, [`crate::detect::to_gray_opencv`]); version-1 filters were trained on Rec. 709 grey.
+//! An unknown type code is [`Error::UnknownFilterType`]. This build writes version 2.
 
 use std::path::Path;
 
 use rustfft::num_complex::Complex32;
 
-use super::Filter;
+use super::{Filter, FilterType};
 use crate::error::{Error, Result};
 
 const MAGIC: &[u8; 8] = b"UNSHEARF";
-/// The file-format version this build reads and writes.
-pub const FORMAT_VERSION: u32 = 1;
-/// Filter kind code for UMACE.
-const KIND_UMACE: u32 = 1;
+/// The file-format version this build writes (it also reads version 1, as UMACE).
+pub const FORMAT_VERSION: u32 = 2;
 const MIN_SIZE: usize = 8;
 /// Filters in a file without a mouth filter: right eye, left eye, nose.
 const FILTER_COUNT_NO_MOUTH: u32 = 3;
@@ -35,8 +39,11 @@ const FILTER_COUNT_NO_MOUTH: u32 = 3;
 const FILTER_COUNT_WITH_MOUTH: u32 = 4;
 const MAX_SIZE: usize = 256;
 
-/// The built-in eye filters (trained with `unshear train`, see `models/README.md`).
-static EMBEDDED: &[u8] = include_bytes!("../../models/eye_filters.bin");
+/// The built-in filter sets, one per type (trained with `unshear train --filter-type T`, see
+/// `models/README.md`).
+static EMBEDDED_UMACE: &[u8] = include_bytes!("../../models/eye_filters_umace.bin");
+static EMBEDDED_ASEF: &[u8] = include_bytes!("../../models/eye_filters_asef.bin");
+static EMBEDDED_MOSSE: &[u8] = include_bytes!("../../models/eye_filters_mosse.bin");
 
 /// The filter set: one filter for each eye, as the paper, and one for the nose.
 #[derive(Debug, Clone, PartialEq)]
@@ -54,12 +61,31 @@ pub struct EyeFilters {
     pub mouth: Option<Filter>,
     /// Width of the normalised face the filters were trained at, in pixels.
     pub face_width: u32,
+    /// How the three filters were synthesised (stored in the file).
+    pub kind: FilterType,
 }
 
 impl EyeFilters {
-    /// The filters built into the binary.
+    /// The built-in filters of the default type, [`FilterType::DEFAULT`].
     pub fn embedded() -> Result<Self> {
-        Self::from_bytes(EMBEDDED)
+        Self::builtin(FilterType::DEFAULT)
+    }
+
+    /// The built-in filters of type `kind`.
+    pub fn builtin(kind: FilterType) -> Result<Self> {
+        let bytes = match kind {
+            FilterType::Umace => EMBEDDED_UMACE,
+            FilterType::Asef => EMBEDDED_ASEF,
+            FilterType::Mosse => EMBEDDED_MOSSE,
+        };
+        let filters = Self::from_bytes(bytes)?;
+        if filters.kind != kind {
+            return Err(Error::FilterFile(format!(
+                "built-in {kind} filters are of type {}",
+                filters.kind
+            )));
+        }
+        Ok(filters)
     }
 
     /// Side length of the filters.
@@ -96,14 +122,16 @@ impl EyeFilters {
             pos: 8,
         };
         let version = r.u32()?;
-        if version != FORMAT_VERSION {
+        if !(1..=FORMAT_VERSION).contains(&version) {
             return Err(Error::FilterFile(format!(
-                "format version {version} not supported (this build reads {FORMAT_VERSION})"
+                "format version {version} not supported (this build reads 1 to {FORMAT_VERSION})"
             )));
         }
-        let kind = r.u32()?;
-        if kind != KIND_UMACE {
-            return Err(Error::FilterFile(format!("unknown filter kind {kind}")));
+        let kind = FilterType::from_code(r.u32()?)?;
+        if version == 1 && kind != FilterType::Umace {
+            return Err(Error::FilterFile(format!(
+                "format version 1 holds UMACE filters only, not {kind}"
+            )));
         }
         let size = r.u32()? as usize;
         if !(MIN_SIZE..=MAX_SIZE).contains(&size) {
@@ -144,6 +172,7 @@ impl EyeFilters {
             nose,
             mouth,
             face_width,
+            kind,
         })
     }
 
@@ -158,7 +187,7 @@ impl EyeFilters {
         out.extend_from_slice(MAGIC);
         for v in [
             FORMAT_VERSION,
-            KIND_UMACE,
+            self.kind.code(),
             size as u32,
             self.face_width,
             filters.len() as u32,
@@ -238,6 +267,10 @@ mod tests {
     use super::*;
 
     fn sample(size: usize) -> EyeFilters {
+        sample_of(size, FilterType::Umace)
+    }
+
+    fn sample_of(size: usize, kind: FilterType) -> EyeFilters {
         let f = |seed: f32| Filter {
             size,
             spectrum: (0..size * size)
@@ -251,18 +284,60 @@ mod tests {
             nose: f(3.0),
             mouth: Some(f(4.0)),
             face_width: 150,
+            kind,
         }
     }
 
+    /// Re-seals `body` (a whole file) with a fresh checksum after editing it.
+    fn reseal(mut body: Vec<u8>) -> Vec<u8> {
+        body.truncate(body.len() - 8);
+        let h = fnv1a(&body);
+        body.extend_from_slice(&h.to_le_bytes());
+        body
+    }
+
     #[test]
-    fn round_trip() {
-        let filters = sample(8);
-        let bytes = filters.to_bytes();
-        assert_eq!(EyeFilters::from_bytes(&bytes).expect("valid"), filters);
-        assert_eq!(
-            bytes,
-            EyeFilters::from_bytes(&bytes).expect("valid").to_bytes()
-        );
+    fn round_trip_keeps_the_type() {
+        for kind in FilterType::ALL {
+            let filters = sample_of(8, kind);
+            let bytes = filters.to_bytes();
+            assert_eq!(u32::from_le_bytes(bytes[8..12].try_into().expect("4")), 2);
+            assert_eq!(
+                u32::from_le_bytes(bytes[12..16].try_into().expect("4")),
+                kind.code()
+            );
+            let back = EyeFilters::from_bytes(&bytes).expect("valid");
+            assert_eq!(back, filters);
+            assert_eq!(bytes, back.to_bytes());
+        }
+    }
+
+    /// Version-1 files (the layout before filter types) are read as UMACE; a version-1 file
+    /// naming another type is refused.
+    #[test]
+    fn version_1_is_read_as_umace() {
+        let mut v1 = sample(8).to_bytes();
+        v1[8..12].copy_from_slice(&1u32.to_le_bytes());
+        let f = EyeFilters::from_bytes(&reseal(v1.clone())).expect("v1 valid");
+        assert_eq!(f.kind, FilterType::Umace);
+        assert_eq!(f.right_eye, sample(8).right_eye);
+        v1[12..16].copy_from_slice(&FilterType::Mosse.code().to_le_bytes());
+        assert!(matches!(
+            EyeFilters::from_bytes(&reseal(v1)),
+            Err(Error::FilterFile(m)) if m.contains("version 1")
+        ));
+    }
+
+    #[test]
+    fn unknown_type_is_a_typed_error() {
+        for code in [0u32, 4, 77] {
+            let mut b = sample(8).to_bytes();
+            b[12..16].copy_from_slice(&code.to_le_bytes());
+            assert!(
+                matches!(EyeFilters::from_bytes(&reseal(b)), Err(Error::UnknownFilterType(c)) if c == code),
+                "code {code}"
+            );
+        }
     }
 
     #[test]
@@ -276,13 +351,20 @@ mod tests {
 
     #[test]
     fn embedded_filters_load() {
-        let f = EyeFilters::embedded().expect("embedded filters valid");
-        assert_eq!(f.size(), 64);
-        assert_eq!(f.face_width, 150);
-        assert!(f.right_eye.training_count >= 1500 && f.left_eye.training_count >= 1500);
-        assert_eq!(f.nose.training_count, f.left_eye.training_count);
-        let mouth = f.mouth.expect("built-in filters have a mouth filter");
-        assert_eq!(mouth.training_count, f.left_eye.training_count);
+        for kind in FilterType::ALL {
+            let f = EyeFilters::builtin(kind).expect("embedded filters valid");
+            assert_eq!(f.kind, kind);
+            assert_eq!(f.size(), 64);
+            assert_eq!(f.face_width, 150);
+            assert!(f.right_eye.training_count >= 1500 && f.left_eye.training_count >= 1500);
+            assert_eq!(f.nose.training_count, f.left_eye.training_count);
+            let mouth = f.mouth.expect("built-in filters have a mouth filter");
+            assert_eq!(mouth.training_count, f.left_eye.training_count);
+        }
+        assert_eq!(
+            EyeFilters::embedded().expect("default").kind,
+            FilterType::DEFAULT
+        );
     }
 
     #[test]
@@ -303,15 +385,10 @@ mod tests {
     /// A file with a valid checksum but a lying header is still rejected.
     #[test]
     fn inconsistent_header_is_rejected() {
-        let reseal = |mut body: Vec<u8>| {
-            body.truncate(body.len() - 8);
-            let h = fnv1a(&body);
-            body.extend_from_slice(&h.to_le_bytes());
-            body
-        };
         let good = sample(8).to_bytes();
         for (offset, value) in [
-            (8, 2u32),
+            (8, 0u32),
+            (8, 3),
             (12, 9),
             (16, 4096),
             (16, 16),

@@ -140,20 +140,28 @@ impl UmaceTrainer {
                 }
             })
             .collect();
-        let mut spatial = self.correlator.inverse_real(&unwindowed);
-        let window = hamming(n);
-        for y in 0..n {
-            for x in 0..n {
-                spatial[y * n + x] *= window[x] * window[y];
-            }
-        }
-        let spectrum = self.correlator.spectrum(&spatial);
+        let spectrum = hamming_windowed(&mut self.correlator, &unwindowed);
         Some(Filter {
             size: n,
             spectrum,
             training_count: self.count,
         })
     }
+}
+
+/// The spectrum of `IDFT(spectrum)` (real part) multiplied by a 2-D periodic Hamming window
+/// centred on the patch centre: the spatial windowing of the module docs, shared by the ASEF and
+/// MOSSE trainers. `correlator` must be of the spectrum's size.
+pub fn hamming_windowed(correlator: &mut Correlator, spectrum: &[Complex32]) -> Vec<Complex32> {
+    let n = correlator.size();
+    let mut spatial = correlator.inverse_real(spectrum);
+    let window = hamming(n);
+    for y in 0..n {
+        for x in 0..n {
+            spatial[y * n + x] *= window[x] * window[y];
+        }
+    }
+    correlator.spectrum(&spatial)
 }
 
 /// Periodic Hamming window of length `n`, centred on sample `n / 2` (the patch centre).

@@ -37,9 +37,12 @@ pub struct ModelArgs {
     /// OpenCV Haar cascade XML to detect faces with [default: built-in frontalface_alt2].
     #[arg(long, value_name = "FILE")]
     pub cascade: Option<PathBuf>,
-    /// Filter file made by `unshear train` [default: built-in].
+    /// Filter file made by `unshear train` (its own type is used) [default: built-in].
     #[arg(long, value_name = "PATH")]
     pub filters: Option<PathBuf>,
+    /// Which built-in filter set to use [default: the built-in default type].
+    #[arg(long, value_enum, value_name = "TYPE", conflicts_with = "filters")]
+    pub filter_type: Option<FilterTypeArg>,
     /// Refuse images with more pixels than this (checked before decoding).
     #[arg(long, value_name = "N", default_value_t = unshear::imageio::DEFAULT_MAX_PIXELS)]
     pub max_pixels: u64,
@@ -47,9 +50,11 @@ pub struct ModelArgs {
     #[arg(long, value_name = "N", default_value_t = unshear::pipeline::DEFAULT_REFINEMENTS)]
     pub refine: usize,
     /// How located points become k: `equation5` (the paper), `shear-roll` (eye line and nose
-    /// axis, roll solved exactly), `shear-roll-yaw` (also the mouth axis, yaw extrapolated out).
-    #[arg(long, value_name = "MODEL", default_value = "shear-roll-yaw")]
-    pub shear_model: ShearModelArg,
+    /// axis, roll solved exactly), `shear-roll-yaw` (also the mouth axis, yaw extrapolated out)
+    /// [default: shear-roll-yaw for stills, equation5 for `video`, where its lower per-frame
+    /// noise matters more].
+    #[arg(long, value_name = "MODEL")]
+    pub shear_model: Option<ShearModelArg>,
     /// Refuse a face's estimate (report `"k": null`, do not correct by it) below this
     /// confidence (0 to 1).
     #[arg(long, value_name = "C", default_value_t = unshear::pipeline::DEFAULT_MIN_CONFIDENCE)]
@@ -181,6 +186,9 @@ pub struct TrainArgs {
     /// them, as the built-in filters were trained).
     #[arg(long)]
     pub no_mirror: bool,
+    /// Which filters to synthesise [default: the built-in default type].
+    #[arg(long, value_enum, value_name = "TYPE")]
+    pub filter_type: Option<FilterTypeArg>,
     /// Output filter file.
     #[arg(short = 'o', long = "output", value_name = "PATH")]
     pub output: PathBuf,
@@ -280,6 +288,27 @@ pub struct EvalRecognitionArgs {
     pub grid: usize,
     #[command(flatten)]
     pub model: ModelArgs,
+}
+
+/// `--filter-type`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum FilterTypeArg {
+    /// UMACE (the paper's): whitened average of centred features.
+    Umace,
+    /// ASEF: average of exact filters mapping each crop to a Gaussian peak at its feature.
+    Asef,
+    /// MOSSE: least-squares filter mapping all crops to Gaussian peaks at their features.
+    Mosse,
+}
+
+impl From<FilterTypeArg> for unshear::filters::FilterType {
+    fn from(t: FilterTypeArg) -> Self {
+        match t {
+            FilterTypeArg::Umace => Self::Umace,
+            FilterTypeArg::Asef => Self::Asef,
+            FilterTypeArg::Mosse => Self::Mosse,
+        }
+    }
 }
 
 /// `--region`.

@@ -24,7 +24,7 @@ use args::{
 use batch::{collect_inputs, run_ordered, Input};
 use report::JsonLine;
 use unshear::detect::{Cascade, DetectorParams, FaceDetector};
-use unshear::filters::EyeFilters;
+use unshear::filters::{EyeFilters, FilterType};
 use unshear::imageio::{self, WriteOptions};
 use unshear::pipeline::{CorrectOptions, ImageReport, Region};
 use unshear::{Shear, Unshear};
@@ -81,17 +81,20 @@ fn load_models(m: &ModelArgs) -> Result<Unshear> {
         Some(p) => {
             EyeFilters::from_file(p).with_context(|| format!("loading filters {}", p.display()))?
         }
-        None => EyeFilters::embedded().context("loading the built-in filters")?,
+        None => {
+            let kind = m.filter_type.map_or(FilterType::DEFAULT, FilterType::from);
+            EyeFilters::builtin(kind)
+                .with_context(|| format!("loading the built-in {kind} filters"))?
+        }
     };
     let mut unshear = Unshear::new(detector, filters);
     unshear.set_refinements(m.refine);
     if !(0.0..=1.0).contains(&m.min_confidence) {
-        bail!(
-            "--min-confidence {} is outside 0 to 1",
-            m.min_confidence
-        );
+        bail!("--min-confidence {} is outside 0 to 1", m.min_confidence);
     }
-    unshear.set_model(m.shear_model.into());
+    if let Some(model) = m.shear_model {
+        unshear.set_model(model.into());
+    }
     unshear.set_min_confidence(m.min_confidence);
     Ok(unshear)
 }
@@ -405,6 +408,7 @@ fn train(a: TrainArgs) -> Result<()> {
     let options = unshear::train::TrainOptions {
         min_eye_distance: a.min_eye_distance,
         mirror: !a.no_mirror,
+        filter_type: a.filter_type.map_or(FilterType::DEFAULT, FilterType::from),
         ..Default::default()
     };
     let (filters, summary) = unshear::train::train_eye_filters(faces, &options)?;
@@ -427,10 +431,12 @@ fn train(a: TrainArgs) -> Result<()> {
         },
     )?;
     eprintln!(
-        "unshear: trained on {} faces ({} eye patches per eye{}; {} faces below {} px eye distance skipped) -> {}",
+        "unshear: trained {} filters on {} faces ({} crops per feature{}, {} patches per filter; {} faces below {} px eye distance skipped) -> {}",
+        filters.kind,
         summary.faces,
-        filters.right_eye.training_count,
+        summary.crops,
         if a.no_mirror { "" } else { ", mirrored copies included" },
+        filters.right_eye.training_count,
         summary.too_small,
         a.min_eye_distance,
         path.display()

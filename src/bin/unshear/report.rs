@@ -97,7 +97,7 @@ pub fn face(f: &FaceReport) -> JsonFace {
         mouth: f.mouth.map(pt),
         k: f.k.map(r4),
         k_measured: r4(f.k_measured),
-        roll: (f.roll_degrees * 100.0).round() / 100.0,
+        roll: r4(f.roll_degrees),
         confidence: r4(f.confidence),
     }
 }
@@ -123,17 +123,23 @@ mod tests {
     fn face() -> impl Strategy<Value = FaceReport> {
         (
             prop::array::uniform16(number()),
-            prop::array::uniform2(number()),
+            prop::array::uniform8(number()),
+            any::<bool>(),
         )
-            .prop_map(|(v, w)| FaceReport {
+            .prop_map(|(v, w, refused)| FaceReport {
                 face_box: Rect::new(v[0], v[1], v[2], v[3]),
                 right_eye: Point { x: v[4], y: v[5] },
                 left_eye: Point { x: v[6], y: v[7] },
                 right_nostril: Point { x: v[8], y: v[9] },
                 left_nostril: Point { x: v[10], y: v[11] },
-                k: v[12],
+                mouth: (!refused).then_some(Point { x: w[3], y: w[4] }),
+                k: (!refused).then_some(v[12]),
+                k_measured: v[12],
+                k_nose: Some(w[5]),
+                k_mouth: None,
+                roll_degrees: w[6],
                 confidence: v[13],
-                psr: [v[14], v[15], w[0], w[1]],
+                psr: [v[14], v[15], w[0], w[1], w[2]],
             })
     }
 
@@ -186,7 +192,12 @@ mod tests {
                     let printed = v["faces"].as_array().ok_or_else(|| TestCaseError::fail("faces"))?;
                     prop_assert_eq!(printed.len(), faces.len());
                     for (p, f) in printed.iter().zip(&faces) {
-                        check_number(&p["k"], f.k)?;
+                        match f.k {
+                            Some(k) => check_number(&p["k"], k)?,
+                            None => prop_assert!(p["k"].is_null()),
+                        }
+                        check_number(&p["k_measured"], f.k_measured)?;
+                        check_number(&p["roll"], f.roll_degrees)?;
                         check_number(&p["confidence"], f.confidence)?;
                         check_number(&p["box"][2], f.face_box.width)?;
                         check_number(&p["left_nostril"][1], f.left_nostril.y)?;
