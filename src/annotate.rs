@@ -23,6 +23,8 @@ pub struct FaceMarks {
     pub right_nostril: Point,
     /// The subject's left nostril.
     pub left_nostril: Point,
+    /// The mouth centre, when located.
+    pub mouth: Option<Point>,
     /// The estimated shear, if any; it sets the direction of the drawn face axis.
     pub k: Option<f64>,
 }
@@ -33,6 +35,8 @@ pub const BOX_COLOR: Rgb<u8> = Rgb([0, 170, 255]);
 pub const EYE_COLOR: Rgb<u8> = Rgb([0, 230, 0]);
 /// Colour of the nostril marks (orange).
 pub const NOSTRIL_COLOR: Rgb<u8> = Rgb([255, 120, 0]);
+/// Colour of the mouth mark (violet).
+pub const MOUTH_COLOR: Rgb<u8> = Rgb([170, 80, 255]);
 /// Colour of the eye-to-nostril lines (yellow).
 pub const LINK_COLOR: Rgb<u8> = Rgb([255, 230, 0]);
 /// Colour of the face's vertical axis under the estimated shear (magenta).
@@ -47,7 +51,7 @@ pub fn line_width(width: u32, height: u32) -> f64 {
 }
 
 /// An RGB copy of `img` with, per face: the box, the two eyes (green) and nostrils (orange) as
-/// discs with a black outline, the eye→nostril lines on each side (yellow), and — when `k` is
+/// discs with a black outline, the mouth (violet) when located, the eye→nostril lines on each side (yellow), and — when `k` is
 /// known — the face's vertical axis under the estimated shear (magenta): the line through the
 /// midpoint of the eyes in direction `(k, 1)`, spanning the box's rows.
 pub fn draw_annotations(img: &DynamicImage, faces: &[FaceMarks]) -> RgbImage {
@@ -69,7 +73,10 @@ pub fn draw_annotations(img: &DynamicImage, faces: &[FaceMarks]) -> RgbImage {
             (face.left_eye, EYE_COLOR),
             (face.right_nostril, NOSTRIL_COLOR),
             (face.left_nostril, NOSTRIL_COLOR),
-        ] {
+        ]
+        .into_iter()
+        .chain(face.mouth.map(|m| (m, MOUTH_COLOR)))
+        {
             draw_disc(&mut out, p, radius + lw, OUTLINE_COLOR);
             draw_disc(&mut out, p, radius, color);
         }
@@ -215,6 +222,7 @@ mod tests {
             left_eye: Point::new(240.0, 160.0),
             right_nostril: Point::new(185.0, 240.0),
             left_nostril: Point::new(215.0, 240.0),
+            mouth: Some(Point::new(212.0, 290.0)),
             k: Some(0.2),
         }
     }
@@ -234,6 +242,7 @@ mod tests {
         assert_eq!(*out.get_pixel(240, 160), EYE_COLOR);
         assert_eq!(*out.get_pixel(185, 240), NOSTRIL_COLOR);
         assert_eq!(*out.get_pixel(215, 240), NOSTRIL_COLOR);
+        assert_eq!(*out.get_pixel(212, 290), MOUTH_COLOR);
         // Eye-nostril link, halfway (172.5, 200) -> pixel (172 or 173, 200).
         assert!([172, 173]
             .iter()
@@ -276,6 +285,7 @@ mod tests {
                 left_eye: Point::new(1e6, -1e6),
                 right_nostril: Point::new(f64::NAN, 3.0),
                 left_nostril: Point::new(f64::INFINITY, f64::NEG_INFINITY),
+                mouth: Some(Point::new(f64::NAN, f64::NAN)),
                 k: Some(f64::NAN),
             },
             FaceMarks {

@@ -109,7 +109,9 @@ pub struct ImageReport {
 }
 
 impl ImageReport {
-    /// The marks [`crate::annotate::draw_annotations`] draws for these faces.
+    /// The marks [`crate::annotate::draw_annotations`] draws for these faces (the face axis of
+    /// a refused estimate is drawn too, with the shear that was measured: the picture shows what
+    /// was found).
     pub fn marks(&self) -> Vec<FaceMarks> {
         self.faces
             .iter()
@@ -119,7 +121,8 @@ impl ImageReport {
                 left_eye: f.left_eye,
                 right_nostril: f.right_nostril,
                 left_nostril: f.left_nostril,
-                k: f.k,
+                mouth: f.mouth,
+                k: f.k.or(Some(f.k_measured)),
             })
             .collect()
     }

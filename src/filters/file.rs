@@ -45,7 +45,8 @@ static EMBEDDED_UMACE: &[u8] = include_bytes!("../../models/eye_filters_umace.bi
 static EMBEDDED_ASEF: &[u8] = include_bytes!("../../models/eye_filters_asef.bin");
 static EMBEDDED_MOSSE: &[u8] = include_bytes!("../../models/eye_filters_mosse.bin");
 
-/// The filter set: one filter for each eye, as the paper, and one for the nose.
+/// The filter set: one filter for each eye, as the paper, one for the nose and (optionally) one
+/// for the mouth.
 #[derive(Debug, Clone, PartialEq)]
 pub struct EyeFilters {
     /// Filter for the subject's right eye (on the image's left).
@@ -61,7 +62,7 @@ pub struct EyeFilters {
     pub mouth: Option<Filter>,
     /// Width of the normalised face the filters were trained at, in pixels.
     pub face_width: u32,
-    /// How the three filters were synthesised (stored in the file).
+    /// How the filters were synthesised (stored in the file).
     pub kind: FilterType,
 }
 

@@ -59,6 +59,10 @@ pub struct ModelArgs {
     /// confidence (0 to 1).
     #[arg(long, value_name = "C", default_value_t = unshear::pipeline::DEFAULT_MIN_CONFIDENCE)]
     pub min_confidence: f64,
+    /// Detect in the image as it is only (the paper's single pass): no de-sheared retries when
+    /// no face is found.
+    #[arg(long)]
+    pub no_shear_search: bool,
     /// Worker threads [default: one per core].
     #[arg(long, short = 'j', value_name = "N")]
     pub jobs: Option<usize>,

@@ -92,6 +92,9 @@ fn load_models(m: &ModelArgs) -> Result<Unshear> {
     if !(0.0..=1.0).contains(&m.min_confidence) {
         bail!("--min-confidence {} is outside 0 to 1", m.min_confidence);
     }
+    if m.no_shear_search {
+        unshear.set_shear_hypotheses(&[]);
+    }
     if let Some(model) = m.shear_model {
         unshear.set_model(model.into());
     }
