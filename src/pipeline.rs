@@ -195,8 +195,16 @@ impl Unshear {
     /// image de-sheared by each of the shear hypotheses, keeping the strongest of overlapping
     /// detections.
     pub fn detect(&self, gray: &GrayImage) -> Vec<Detection> {
-        let as_is: Vec<Detection> = self
-            .detector
+        let as_is = self.detect_as_is(gray);
+        if as_is.is_empty() {
+            self.detect_under_hypotheses(gray)
+        } else {
+            as_is
+        }
+    }
+
+    fn detect_as_is(&self, gray: &GrayImage) -> Vec<Detection> {
+        self.detector
             .detect_with_neighbors(gray)
             .into_iter()
             .map(|(face_box, neighbors)| Detection {
@@ -204,16 +212,17 @@ impl Unshear {
                 view_k: 0.0,
                 neighbors,
             })
-            .collect();
-        if !as_is.is_empty() || self.shear_hypotheses.is_empty() {
-            return as_is;
-        }
+            .collect()
+    }
+
+    /// Detections in the views de-sheared by each hypothesis, the strongest of overlapping ones
+    /// kept (most neighbours, then the smaller hypothesis).
+    fn detect_under_hypotheses(&self, gray: &GrayImage) -> Vec<Detection> {
         let mut found: Vec<Detection> = self
             .shear_hypotheses
             .iter()
             .flat_map(|&k| self.detect_desheared(gray, k))
             .collect();
-        // Strongest first, then the smaller hypothesis; keep those not overlapping a kept one.
         found.sort_by(|a, b| {
             b.neighbors
                 .cmp(&a.neighbors)
@@ -330,11 +339,32 @@ impl Unshear {
 
     /// Every detected face box with its estimate, if it gave one (the evaluation needs to tell a
     /// face that was not found from one that was found but gave no estimate).
+    ///
+    /// The de-sheared retries (see [`Self::detect`]) also run when every face found in the image
+    /// as it is gave no accepted estimate: a false detection, or a sheared face found but poorly
+    /// measured, must not hide a face the retries would find. Of overlapping faces the one with
+    /// the higher confidence is kept.
     pub fn detect_and_estimate(&self, gray: &GrayImage) -> Vec<(Rect, Option<FaceReport>)> {
-        self.detect(gray)
-            .into_iter()
-            .map(|d| (d.face_box, self.estimate_detection(gray, &d)))
-            .collect()
+        let estimate = |d: Detection| (d.face_box, self.estimate_detection(gray, &d));
+        let as_is: Vec<(Rect, Option<FaceReport>)> =
+            self.detect_as_is(gray).into_iter().map(estimate).collect();
+        let accepted = as_is
+            .iter()
+            .any(|(_, r)| r.as_ref().is_some_and(|r| r.k.is_some()));
+        if accepted || self.shear_hypotheses.is_empty() {
+            return as_is;
+        }
+        let confidence = |r: &Option<FaceReport>| r.as_ref().map_or(-1.0, |r| r.confidence);
+        let mut all: Vec<(Rect, Option<FaceReport>)> = as_is;
+        all.extend(self.detect_under_hypotheses(gray).into_iter().map(estimate));
+        all.sort_by(|a, b| confidence(&b.1).total_cmp(&confidence(&a.1)));
+        let mut kept: Vec<(Rect, Option<FaceReport>)> = Vec::new();
+        for f in all {
+            if kept.iter().all(|k| k.0.iou(&f.0) < 0.3) {
+                kept.push(f);
+            }
+        }
+        kept
     }
 
     /// Locates the features in one detected face, starting from the view its detection was made
