@@ -218,10 +218,12 @@ impl Unshear {
     /// Detections in the views de-sheared by each hypothesis, the strongest of overlapping ones
     /// kept (most neighbours, then the smaller hypothesis).
     fn detect_under_hypotheses(&self, gray: &GrayImage) -> Vec<Detection> {
+        // One colour-model wrapper for every hypothesis (the warp takes a `DynamicImage`).
+        let view = DynamicImage::ImageLuma8(gray.clone());
         let mut found: Vec<Detection> = self
             .shear_hypotheses
             .iter()
-            .flat_map(|&k| self.detect_desheared(gray, k))
+            .flat_map(|&k| self.detect_desheared(&view, k))
             .collect();
         found.sort_by(|a, b| {
             b.neighbors
@@ -238,11 +240,10 @@ impl Unshear {
     }
 
     /// Detections in `gray` de-sheared by `k` about its middle row, moved back to `gray`.
-    fn detect_desheared(&self, gray: &GrayImage, k: f64) -> Vec<Detection> {
+    fn detect_desheared(&self, gray: &DynamicImage, k: f64) -> Vec<Detection> {
         let shear = Shear::about_middle(k, gray.height());
-        let view = DynamicImage::ImageLuma8(gray.clone());
         let Ok((view, placement)) =
-            warp::try_remove_shear(&view, shear, Interpolation::Linear, Canvas::Expand)
+            warp::try_remove_shear(gray, shear, Interpolation::Linear, Canvas::Expand)
         else {
             return Vec::new();
         };
