@@ -1,5 +1,7 @@
 //! The command-line contract: JSON shape, exit codes, output naming and never overwriting inputs.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 
 use assert_cmd::Command;
@@ -63,21 +65,7 @@ fn estimate_json_has_the_documented_shape() {
         .map(String::as_str)
         .collect();
     fkeys.sort();
-    assert_eq!(
-        fkeys,
-        [
-            "box",
-            "confidence",
-            "k",
-            "k_measured",
-            "left_eye",
-            "left_nostril",
-            "mouth",
-            "right_eye",
-            "right_nostril",
-            "roll"
-        ]
-    );
+    assert_eq!(fkeys, common::FACE_JSON_KEYS);
     assert_eq!(face["box"].as_array().expect("box").len(), 4);
     for p in [
         "right_eye",

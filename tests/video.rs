@@ -309,21 +309,7 @@ fn command_line_json_folders_and_errors() {
         .map(String::as_str)
         .collect();
     keys.sort();
-    assert_eq!(
-        keys,
-        [
-            "box",
-            "confidence",
-            "k",
-            "k_measured",
-            "left_eye",
-            "left_nostril",
-            "mouth",
-            "right_eye",
-            "right_nostril",
-            "roll"
-        ]
-    );
+    assert_eq!(keys, common::FACE_JSON_KEYS);
 
     // y4m -> frame folder -> y4m.
     let folder = dir.path().join("frames");

@@ -2,6 +2,21 @@
 
 use std::path::PathBuf;
 
+/// The keys of a face object in the `--json` output of `estimate` and `video`, sorted.
+#[allow(dead_code)] // Not every test file uses every helper.
+pub const FACE_JSON_KEYS: [&str; 10] = [
+    "box",
+    "confidence",
+    "k",
+    "k_measured",
+    "left_eye",
+    "left_nostril",
+    "mouth",
+    "right_eye",
+    "right_nostril",
+    "roll",
+];
+
 /// A committed fixture face (tests/fixtures/faces, see SOURCE.md there).
 #[allow(dead_code)] // Not every test file uses every helper.
 pub fn fixture(name: &str) -> PathBuf {
