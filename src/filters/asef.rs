@@ -1,9 +1,9 @@
 //! ASEF (Average of Synthetic Exact Filters; Bolme, Draper & Beveridge, "Average of Synthetic
 //! Exact Filters", CVPR 2009) synthesis.
 //!
-//! For each training patch `f_i` (normalised with [`normalize_patch`], as UMACE's) with its
+//! For each training patch `f_i` (normalised with [`normalize_patch`](super::normalize_patch), as UMACE's) with its
 //! feature `(dx, dy)` from the patch centre, the desired correlation plane `g_i` is a Gaussian
-//! peak at `(dx, dy)` ([`desired_output`], [`DESIRED_SIGMA`]). The *exact filter* is the one
+//! peak at `(dx, dy)` ([`desired_output`](super::desired_output), [`DESIRED_SIGMA`]). The *exact filter* is the one
 //! that maps `f_i` to `g_i` exactly. In this crate's convention `c = IDFT(X . conj(H))`
 //! ([`super::Correlator`]), so `conj(H_i) = G_i / F_i`, i.e.
 //!
@@ -19,9 +19,8 @@
 
 use rustfft::num_complex::Complex32;
 
-use super::correlate::Correlator;
-use super::umace::{hamming_windowed, normalize_patch};
-use super::{desired_output, Filter, SynthesisOptions, DESIRED_SIGMA};
+use super::spectra::TrainingSpectra;
+use super::{Filter, SynthesisOptions, DESIRED_SIGMA};
 
 /// Default per-patch floor, a fraction of the patch's mean power: 0.1. A single exact filter is
 /// far noisier than MOSSE's pooled quotient, so it takes a larger floor than UMACE's and MOSSE's
@@ -38,20 +37,16 @@ pub const DEFAULT_OPTIONS: SynthesisOptions = SynthesisOptions {
 /// Accumulates exact filters and averages them (sums in `f64`, patches in the order given, so
 /// the same patches give the same bits).
 pub struct AsefTrainer {
-    size: usize,
     options: SynthesisOptions,
-    correlator: Correlator,
+    spectra: TrainingSpectra,
     sum_filter: Vec<(f64, f64)>,
-    spectrum: Vec<Complex32>,
-    target: Vec<Complex32>,
-    patch: Vec<f32>,
     count: u32,
 }
 
 impl std::fmt::Debug for AsefTrainer {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("AsefTrainer")
-            .field("size", &self.size)
+            .field("size", &self.spectra.size())
             .field("options", &self.options)
             .field("count", &self.count)
             .finish()
@@ -67,13 +62,9 @@ impl AsefTrainer {
     /// A trainer with explicit settings.
     pub fn with_options(size: usize, options: SynthesisOptions) -> Self {
         Self {
-            size,
             options,
-            correlator: Correlator::new(size),
+            spectra: TrainingSpectra::new(size),
             sum_filter: vec![(0.0, 0.0); size * size],
-            spectrum: vec![Complex32::default(); size * size],
-            target: vec![Complex32::default(); size * size],
-            patch: vec![0.0; size * size],
             count: 0,
         }
     }
@@ -84,28 +75,19 @@ impl AsefTrainer {
     }
 
     /// Adds one patch (`size x size`, row-major) whose feature lies `(dx, dy)` pixels from the
-    /// patch centre `(size/2, size/2)`. The patch is normalised with [`normalize_patch`] first.
+    /// patch centre `(size/2, size/2)`. The patch is normalised with [`normalize_patch`](super::normalize_patch) first.
     /// A constant patch (no information) is counted but adds nothing.
     ///
     /// # Panics
     /// If `patch.len() != size * size` (a programming error, not a data error).
     pub fn add(&mut self, patch: &[f32], dx: f64, dy: f64) {
-        assert_eq!(
-            patch.len(),
-            self.size * self.size,
-            "training patch must be size x size"
-        );
-        self.patch.copy_from_slice(patch);
-        normalize_patch(&mut self.patch);
-        self.correlator
-            .spectrum_into(&self.patch, &mut self.spectrum);
-        let g = desired_output(self.size, dx, dy, self.options.sigma);
-        self.correlator.spectrum_into(&g, &mut self.target);
+        self.spectra.load(patch, dx, dy, self.options.sigma);
         let power = |c: &Complex32| {
             let (re, im) = (f64::from(c.re), f64::from(c.im));
             re * re + im * im
         };
-        let mean_power = self.spectrum.iter().map(power).sum::<f64>() / self.spectrum.len() as f64;
+        let spectrum = &self.spectra.patch_spectrum;
+        let mean_power = spectrum.iter().map(power).sum::<f64>() / spectrum.len() as f64;
         let eps = self.options.regularization * mean_power;
         self.count += 1;
         if eps <= 0.0 {
@@ -114,8 +96,8 @@ impl AsefTrainer {
         for ((s, f), g) in self
             .sum_filter
             .iter_mut()
-            .zip(&self.spectrum)
-            .zip(&self.target)
+            .zip(spectrum)
+            .zip(&self.spectra.target_spectrum)
         {
             // conj(G) F / (|F|^2 + eps)
             let (fr, fi) = (f64::from(f.re), f64::from(f.im));
@@ -127,7 +109,7 @@ impl AsefTrainer {
     }
 
     /// The average exact filter, windowed if so configured. `None` when no patch was added.
-    pub fn finish(mut self) -> Option<Filter> {
+    pub fn finish(self) -> Option<Filter> {
         if self.count == 0 {
             return None;
         }
@@ -137,16 +119,10 @@ impl AsefTrainer {
             .iter()
             .map(|&(re, im)| Complex32::new((re / count) as f32, (im / count) as f32))
             .collect();
-        let spectrum = if self.options.window {
-            hamming_windowed(&mut self.correlator, &average)
-        } else {
-            average
-        };
-        Some(Filter {
-            size: self.size,
-            spectrum,
-            training_count: self.count,
-        })
+        Some(
+            self.spectra
+                .into_filter(average, self.options.window, self.count),
+        )
     }
 }
 
@@ -154,6 +130,7 @@ impl AsefTrainer {
 mod tests {
     use super::*;
     use crate::filters::test_support::{blob_scene, random_patch};
+    use crate::filters::{desired_output, normalize_patch, Correlator};
 
     #[test]
     fn filter_trained_on_displaced_blobs_peaks_at_the_blob() {

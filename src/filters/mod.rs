@@ -15,6 +15,7 @@ pub mod asef;
 pub mod correlate;
 pub mod file;
 pub mod mosse;
+mod spectra;
 pub mod trainer;
 pub mod umace;
 
@@ -146,6 +147,16 @@ pub struct SynthesisOptions {
 /// `sigma` and height 1 centred on plane index `(dx, dy)`, wrapping modulo `size` (index
 /// `size - 1` is displacement -1). Row-major, `size x size`.
 pub fn desired_output(size: usize, dx: f64, dy: f64, sigma: f64) -> Vec<f32> {
+    let mut out = vec![0f32; size * size];
+    desired_output_into(size, dx, dy, sigma, &mut out);
+    out
+}
+
+/// [`desired_output`] into `out`, without allocating.
+///
+/// # Panics
+/// If `out` holds fewer than `size * size` values (a programming error).
+pub fn desired_output_into(size: usize, dx: f64, dy: f64, sigma: f64, out: &mut [f32]) {
     let half = (size / 2) as isize;
     let n = size as isize;
     // Signed displacement of plane index i: 0..half-1 are >= 0, the rest negative.
@@ -164,7 +175,6 @@ pub fn desired_output(size: usize, dx: f64, dy: f64, sigma: f64) -> Vec<f32> {
         }
     };
     let inv = 1.0 / (2.0 * sigma * sigma);
-    let mut out = vec![0f32; size * size];
     for y in 0..size {
         let ey = wrapped(signed(y) - dy);
         for x in 0..size {
@@ -172,7 +182,6 @@ pub fn desired_output(size: usize, dx: f64, dy: f64, sigma: f64) -> Vec<f32> {
             out[y * size + x] = (-(ex * ex + ey * ey) * inv).exp() as f32;
         }
     }
-    out
 }
 
 #[cfg(test)]

@@ -3,13 +3,13 @@
 //!
 //! MOSSE finds the one filter whose outputs on all training patches are closest, in summed
 //! squared error, to the desired planes `g_i` (a Gaussian peak at each patch's feature,
-//! [`desired_output`], [`DESIRED_SIGMA`]). In this crate's convention `c = IDFT(X . conj(H))`
+//! [`desired_output`](super::desired_output), [`DESIRED_SIGMA`]). In this crate's convention `c = IDFT(X . conj(H))`
 //! ([`super::Correlator`]) the minimiser is, frequency by frequency,
 //!
 //! `H = sum_i conj(G_i) F_i / (sum_i |F_i|^2 + eps)`
 //!
 //! (Bolme's `H* = sum G_i F_i* / sum F_i F_i*`, conjugated for our convention). Patches are
-//! normalised with [`normalize_patch`], as UMACE's. `eps = REGULARIZATION * mean(sum_i |F_i|^2)`
+//! normalised with [`normalize_patch`](super::normalize_patch), as UMACE's. `eps = REGULARIZATION * mean(sum_i |F_i|^2)`
 //! guards the bins without energy, as UMACE's floor does; the filter is then Hamming-windowed
 //! in space like UMACE's (optional).
 //!
@@ -19,9 +19,8 @@
 
 use rustfft::num_complex::Complex32;
 
-use super::correlate::Correlator;
-use super::umace::{hamming_windowed, normalize_patch};
-use super::{desired_output, Filter, SynthesisOptions, DESIRED_SIGMA};
+use super::spectra::TrainingSpectra;
+use super::{Filter, SynthesisOptions, DESIRED_SIGMA};
 
 /// Default floor, a fraction of the mean summed power: 0.01, UMACE's. Not tuned on the
 /// evaluation set.
@@ -37,21 +36,17 @@ pub const DEFAULT_OPTIONS: SynthesisOptions = SynthesisOptions {
 /// Accumulates the MOSSE numerator and denominator (in `f64`, patches in the order given, so the
 /// same patches give the same bits).
 pub struct MosseTrainer {
-    size: usize,
     options: SynthesisOptions,
-    correlator: Correlator,
+    spectra: TrainingSpectra,
     numerator: Vec<(f64, f64)>,
     denominator: Vec<f64>,
-    spectrum: Vec<Complex32>,
-    target: Vec<Complex32>,
-    patch: Vec<f32>,
     count: u32,
 }
 
 impl std::fmt::Debug for MosseTrainer {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("MosseTrainer")
-            .field("size", &self.size)
+            .field("size", &self.spectra.size())
             .field("options", &self.options)
             .field("count", &self.count)
             .finish()
@@ -67,14 +62,10 @@ impl MosseTrainer {
     /// A trainer with explicit settings.
     pub fn with_options(size: usize, options: SynthesisOptions) -> Self {
         Self {
-            size,
             options,
-            correlator: Correlator::new(size),
+            spectra: TrainingSpectra::new(size),
             numerator: vec![(0.0, 0.0); size * size],
             denominator: vec![0.0; size * size],
-            spectrum: vec![Complex32::default(); size * size],
-            target: vec![Complex32::default(); size * size],
-            patch: vec![0.0; size * size],
             count: 0,
         }
     }
@@ -85,28 +76,18 @@ impl MosseTrainer {
     }
 
     /// Adds one patch (`size x size`, row-major) whose feature lies `(dx, dy)` pixels from the
-    /// patch centre `(size/2, size/2)`. The patch is normalised with [`normalize_patch`] first.
+    /// patch centre `(size/2, size/2)`. The patch is normalised with [`normalize_patch`](super::normalize_patch) first.
     ///
     /// # Panics
     /// If `patch.len() != size * size` (a programming error, not a data error).
     pub fn add(&mut self, patch: &[f32], dx: f64, dy: f64) {
-        assert_eq!(
-            patch.len(),
-            self.size * self.size,
-            "training patch must be size x size"
-        );
-        self.patch.copy_from_slice(patch);
-        normalize_patch(&mut self.patch);
-        self.correlator
-            .spectrum_into(&self.patch, &mut self.spectrum);
-        let g = desired_output(self.size, dx, dy, self.options.sigma);
-        self.correlator.spectrum_into(&g, &mut self.target);
+        self.spectra.load(patch, dx, dy, self.options.sigma);
         for (((num, den), f), g) in self
             .numerator
             .iter_mut()
             .zip(self.denominator.iter_mut())
-            .zip(&self.spectrum)
-            .zip(&self.target)
+            .zip(&self.spectra.patch_spectrum)
+            .zip(&self.spectra.target_spectrum)
         {
             // conj(G) F
             let (fr, fi) = (f64::from(f.re), f64::from(f.im));
@@ -119,7 +100,7 @@ impl MosseTrainer {
     }
 
     /// The MOSSE filter, windowed if so configured. `None` when no patch was added.
-    pub fn finish(mut self) -> Option<Filter> {
+    pub fn finish(self) -> Option<Filter> {
         if self.count == 0 {
             return None;
         }
@@ -138,16 +119,10 @@ impl MosseTrainer {
                 }
             })
             .collect();
-        let spectrum = if self.options.window {
-            hamming_windowed(&mut self.correlator, &quotient)
-        } else {
-            quotient
-        };
-        Some(Filter {
-            size: self.size,
-            spectrum,
-            training_count: self.count,
-        })
+        Some(
+            self.spectra
+                .into_filter(quotient, self.options.window, self.count),
+        )
     }
 }
 
@@ -155,6 +130,7 @@ impl MosseTrainer {
 mod tests {
     use super::*;
     use crate::filters::test_support::{blob_scene, random_patch};
+    use crate::filters::{desired_output, normalize_patch, Correlator};
 
     /// On one patch, without window and with a negligible floor, MOSSE's output on that patch is
     /// the desired plane (less its mean: the normalised patch has no DC to carry it).

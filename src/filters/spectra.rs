@@ -1,0 +1,78 @@
+//! What ASEF and MOSSE training share: each patch normalised and transformed together with the
+//! spectrum of its desired output, into buffers reused from patch to patch, and the finished
+//! spectrum windowed into a [`Filter`].
+
+use rustfft::num_complex::Complex32;
+
+use super::correlate::Correlator;
+use super::umace::{hamming_windowed, normalize_patch};
+use super::{desired_output_into, Filter};
+
+/// FFT plans and per-patch buffers for a trainer of `size x size` patches.
+pub(crate) struct TrainingSpectra {
+    size: usize,
+    correlator: Correlator,
+    patch: Vec<f32>,
+    desired: Vec<f32>,
+    /// Spectrum of the last normalised patch.
+    pub(crate) patch_spectrum: Vec<Complex32>,
+    /// Spectrum of the last patch's desired output.
+    pub(crate) target_spectrum: Vec<Complex32>,
+}
+
+impl TrainingSpectra {
+    pub(crate) fn new(size: usize) -> Self {
+        Self {
+            size,
+            correlator: Correlator::new(size),
+            patch: vec![0.0; size * size],
+            desired: vec![0.0; size * size],
+            patch_spectrum: vec![Complex32::default(); size * size],
+            target_spectrum: vec![Complex32::default(); size * size],
+        }
+    }
+
+    pub(crate) fn size(&self) -> usize {
+        self.size
+    }
+
+    /// Normalises `patch` ([`normalize_patch`]) and fills [`Self::patch_spectrum`] with its
+    /// spectrum and [`Self::target_spectrum`] with that of the desired output for a feature
+    /// `(dx, dy)` from the patch centre.
+    ///
+    /// # Panics
+    /// If `patch.len() != size * size` (a programming error, not a data error).
+    pub(crate) fn load(&mut self, patch: &[f32], dx: f64, dy: f64, sigma: f64) {
+        assert_eq!(
+            patch.len(),
+            self.size * self.size,
+            "training patch must be size x size"
+        );
+        self.patch.copy_from_slice(patch);
+        normalize_patch(&mut self.patch);
+        self.correlator
+            .spectrum_into(&self.patch, &mut self.patch_spectrum);
+        desired_output_into(self.size, dx, dy, sigma, &mut self.desired);
+        self.correlator
+            .spectrum_into(&self.desired, &mut self.target_spectrum);
+    }
+
+    /// The filter with spectrum `spectrum`, Hamming-windowed in space when `window`.
+    pub(crate) fn into_filter(
+        mut self,
+        spectrum: Vec<Complex32>,
+        window: bool,
+        training_count: u32,
+    ) -> Filter {
+        let spectrum = if window {
+            hamming_windowed(&mut self.correlator, &spectrum)
+        } else {
+            spectrum
+        };
+        Filter {
+            size: self.size,
+            spectrum,
+            training_count,
+        }
+    }
+}
