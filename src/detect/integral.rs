@@ -6,16 +6,22 @@
 //! detector takes is a difference of small, exactly representable numbers, and two's-complement
 //! wrap-around makes those differences exact anyway.
 
-/// The integral planes of one (scaled) image, stored back to back in one buffer so that a feature
-/// can address any plane with a single precomputed offset.
+/// The integral planes of one (scaled) image, or of a horizontal band of it, stored back to back
+/// in one buffer so that a feature can address any plane with a single precomputed offset.
+///
+/// The detector builds them band by band (see `viola_jones`): a window sum is a difference of
+/// four entries, and the parts of the image above the band cancel out of that difference, so
+/// integrals that start at the band's first row give every window inside the band exactly the
+/// same sums as integrals of the whole image, for a fraction of the memory.
 #[derive(Debug, Clone)]
 pub(crate) struct Integrals {
     /// Row length of every plane: image width + 1.
     pub stride: usize,
-    /// Rows of every plane: image height + 1.
+    /// Rows of every plane: the most image rows it can hold + 1.
     pub rows: usize,
     /// `[sum | sqsum | tilted?]`, each `stride * rows` long.
     pub buf: Vec<i32>,
+    tilted: bool,
 }
 
 impl Integrals {
@@ -27,16 +33,39 @@ impl Integrals {
     pub const TILTED: usize = 2;
 
     /// Build the integrals of a `width × height` 8-bit image stored row-major in `pixels`.
+    #[cfg(test)]
     pub fn new(pixels: &[u8], width: usize, height: usize, tilted: bool) -> Self {
-        debug_assert_eq!(pixels.len(), width * height);
+        let mut ii = Self::with_capacity(width, height, tilted);
+        ii.compute(pixels, height);
+        ii
+    }
+
+    /// Zeroed planes for images `width` wide and up to `max_height` rows high; the plane layout
+    /// (and so every feature offset) depends only on these two numbers.
+    pub fn with_capacity(width: usize, max_height: usize, tilted: bool) -> Self {
         let stride = width + 1;
-        let rows = height + 1;
-        let plane = stride * rows;
+        let rows = max_height + 1;
         let planes = if tilted { 3 } else { 2 };
-        let mut buf = vec![0i32; plane * planes];
+        Integrals {
+            stride,
+            rows,
+            buf: vec![0i32; stride * rows * planes],
+            tilted,
+        }
+    }
+
+    /// Fill the planes from the first `height` rows of `pixels` (row-major, `stride − 1` wide;
+    /// `height` at most the capacity). Entries below row `height` keep stale values and must
+    /// not be read.
+    pub fn compute(&mut self, pixels: &[u8], height: usize) {
+        let (stride, width) = (self.stride, self.stride - 1);
+        let plane = stride * self.rows;
+        debug_assert!(height < self.rows && pixels.len() >= width * height);
         {
-            let (sum, rest) = buf.split_at_mut(plane);
+            let (sum, rest) = self.buf.split_at_mut(plane);
             let sq = &mut rest[..plane];
+            // Row 0 is all zeros; it is only ever written as zero, so the first call's zeroed
+            // buffer keeps it so.
             for y in 0..height {
                 let src = &pixels[y * width..(y + 1) * width];
                 let (prev, cur) = sum.split_at_mut((y + 1) * stride);
@@ -56,15 +85,20 @@ impl Integrals {
                 }
             }
         }
-        if tilted {
-            tilted_integral(pixels, width, height, &mut buf[2 * plane..]);
+        if self.tilted {
+            tilted_integral(pixels, width, height, &mut self.buf[2 * plane..]);
         }
-        Integrals { stride, rows, buf }
     }
 
     /// Start of plane `p` in [`Integrals::buf`].
+    #[cfg(test)]
     pub fn plane_offset(&self, p: usize) -> usize {
-        p * self.stride * self.rows
+        Self::plane_offset_in(self.stride, self.rows, p)
+    }
+
+    /// Start of plane `p` in the buffer of integrals with this `stride` and `rows`.
+    pub fn plane_offset_in(stride: usize, rows: usize, p: usize) -> usize {
+        p * stride * rows
     }
 }
 
@@ -161,6 +195,56 @@ mod tests {
                     assert_eq!(i64::from(ii.buf[s0 + i]), s, "sum {w}x{h} at {xx},{yy}");
                     assert_eq!(i64::from(ii.buf[q0 + i]), q, "sqsum {w}x{h} at {xx},{yy}");
                     assert_eq!(i64::from(ii.buf[t0 + i]), t, "tilted {w}x{h} at {xx},{yy}");
+                }
+            }
+        }
+    }
+
+    /// Integrals of a band that starts below the top give every rectangle inside the band the
+    /// same sum as the integrals of the whole image (all three planes), also when the band's
+    /// buffer is reused after a taller band.
+    #[test]
+    fn band_integrals_give_whole_image_window_sums() {
+        let (w, h) = (23usize, 40usize);
+        let img = pseudo_random(w * h, 7);
+        let whole = Integrals::new(&img, w, h, true);
+        let mut band = Integrals::with_capacity(w, 20, true);
+        for (y0, bh) in [(0usize, 20usize), (13, 20), (25, 15), (31, 9)] {
+            band.compute(&img[y0 * w..], bh);
+            for p in [Integrals::SUM, Integrals::SQSUM, Integrals::TILTED] {
+                let at = |ii: &Integrals, x: usize, y: usize| {
+                    ii.buf[ii.plane_offset(p) + y * ii.stride + x]
+                };
+                // Upright rectangles (x0, y0)..(x1, y1) inside the band (sum and sqsum), and
+                // 45° rectangles with apex (x, y), sides a and b (tilted plane).
+                for (xa, ya, xb, yb) in [(0, 0, w, bh), (3, 2, 11, 9), (5, 1, 6, bh)] {
+                    let s = |ii: &Integrals, off: usize| {
+                        at(ii, xb, yb + off)
+                            .wrapping_sub(at(ii, xa, yb + off))
+                            .wrapping_sub(at(ii, xb, ya + off))
+                            .wrapping_add(at(ii, xa, ya + off))
+                    };
+                    if p != Integrals::TILTED {
+                        assert_eq!(s(&band, 0), s(&whole, y0), "plane {p} band at {y0}");
+                    }
+                }
+                for (x, y, a, b) in [
+                    (8usize, 0usize, 4usize, 3usize),
+                    (12, 2, 5, 6),
+                    (6, 1, 2, 2),
+                ] {
+                    if y + a + b > bh {
+                        continue;
+                    }
+                    let t = |ii: &Integrals, off: usize| {
+                        at(ii, x, y + off)
+                            .wrapping_sub(at(ii, x - b, y + b + off))
+                            .wrapping_sub(at(ii, x + a, y + a + off))
+                            .wrapping_add(at(ii, x + a - b, y + a + b + off))
+                    };
+                    if p == Integrals::TILTED {
+                        assert_eq!(t(&band, 0), t(&whole, y0), "tilted band at {y0}");
+                    }
                 }
             }
         }
