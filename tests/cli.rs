@@ -96,6 +96,43 @@ fn estimate_reports_the_applied_shear() {
     assert!((k - 0.3).abs() <= 0.05, "k {k}");
 }
 
+/// `--min-face` bounds the detector's box size: a bound under the face (about 150 px here)
+/// finds the same face (its box moves by a pixel or two, as OpenCV's does with `minSize`: fewer
+/// small raw hits are averaged into it), one over the face finds none.
+#[test]
+fn min_face_skips_smaller_boxes() {
+    let dir = tempfile::tempdir().expect("temp");
+    let img = distorted(dir.path(), 0.3);
+    let faces_with = |min_face: &str| {
+        let out = unshear()
+            .args(["estimate", "--json", "--min-face", min_face])
+            .arg(&img)
+            .assert()
+            .success();
+        json_lines(&out.get_output().stdout)[0]["faces"]
+            .as_array()
+            .expect("faces")
+            .iter()
+            .map(|f| {
+                let b: Vec<f64> = f["box"]
+                    .as_array()
+                    .expect("box")
+                    .iter()
+                    .map(|v| v.as_f64().expect("number"))
+                    .collect();
+                (b, f["k"].as_f64().expect("k"))
+            })
+            .collect::<Vec<_>>()
+    };
+    let (all, bounded) = (faces_with("0"), faces_with("100"));
+    assert_eq!((all.len(), bounded.len()), (1, 1), "{all:?} {bounded:?}");
+    for i in 0..4 {
+        assert!((all[0].0[i] - bounded[0].0[i]).abs() <= 4.0, "{all:?} {bounded:?}");
+    }
+    assert!((all[0].1 - bounded[0].1).abs() <= 0.01, "{all:?} {bounded:?}");
+    assert!(faces_with("230").is_empty());
+}
+
 #[test]
 fn one_bad_file_fails_the_batch_with_1_but_the_rest_is_processed() {
     let dir = tempfile::tempdir().expect("temp");

@@ -32,7 +32,7 @@ pub enum Command {
 }
 
 /// Models and limits shared by the commands that look at faces.
-#[derive(Debug, Args)]
+#[derive(Debug, Clone, Args)]
 pub struct ModelArgs {
     /// OpenCV Haar cascade XML to detect faces with [default: built-in frontalface_alt2].
     #[arg(long, value_name = "FILE")]
@@ -63,6 +63,12 @@ pub struct ModelArgs {
     /// no face is found.
     #[arg(long)]
     pub no_shear_search: bool,
+    /// Smallest face to look for: the detector's minimum box width and height, in pixels
+    /// [default: the cascade's window, 20 px, as OpenCV; `eval shear`: 1.5 times
+    /// --min-eye-distance]. Larger is faster: most of the detector's time goes to the smallest
+    /// boxes, and faces under about 60 px are too small to measure the shear well anyway.
+    #[arg(long, value_name = "PX")]
+    pub min_face: Option<u32>,
     /// Worker threads [default: one per core].
     #[arg(long, short = 'j', value_name = "N")]
     pub jobs: Option<usize>,
