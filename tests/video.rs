@@ -482,3 +482,23 @@ fn tune(results: &[FrameResult], frames: &[(GrayImage, f64)]) {
         }
     }
 }
+
+/// A stream cut inside a frame: an error, but every complete frame before the cut (the ones
+/// held back for the smoother included) is still processed and written, in order.
+#[test]
+fn truncated_stream_still_yields_the_frames_before_the_cut() {
+    let frames: Vec<_> = clip().into_iter().take(8).collect();
+    let bytes = y4m_bytes(&frames);
+    let cut = &bytes[..bytes.len() - 100];
+    let unshear = video_unshear();
+    let mut reader = Y4mReader::new(cut, 1 << 24).expect("stream");
+    let mut writer = Y4mWriter::with_header(Vec::new(), reader.header()).expect("header");
+    let mut processor = VideoProcessor::new(&unshear, ProcessOptions::default());
+    let mut seen = Vec::new();
+    let result = run(&mut reader, Some(&mut writer), &mut processor, |r| {
+        seen.push(r.index)
+    });
+    assert!(result.is_err(), "the cut is reported");
+    assert_eq!(seen, (0..7).collect::<Vec<u64>>());
+    assert_eq!(output_frames(&writer.finish().expect("flush")).len(), 7);
+}

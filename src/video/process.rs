@@ -247,7 +247,8 @@ const QUEUE: usize = 3;
 ///
 /// # Errors
 /// The first error of the source, the processing or the sink; processing stops there (frames
-/// already written stay written).
+/// already written stay written; after a source error the frames read before it, held for the
+/// smoother, are still processed and written).
 pub fn run(
     source: &mut dyn FrameSource,
     sink: Option<&mut dyn FrameSink>,
@@ -285,19 +286,29 @@ pub fn run(
                 on_frame(&result);
                 out_tx.send(frame).is_ok()
             };
+            let mut read_error = None;
             for item in in_rx {
-                if let Some(out) = processor.process(item?)? {
+                let frame = match item {
+                    Ok(frame) => frame,
+                    Err(e) => {
+                        read_error = Some(e);
+                        break;
+                    }
+                };
+                if let Some(out) = processor.process(frame)? {
                     if !deliver(out) {
                         return Ok(());
                     }
                 }
             }
+            // The frames held for the smoother go out even when the source failed, so that a
+            // truncated stream yields every frame read before the error.
             for out in processor.finish()? {
                 if !deliver(out) {
                     break;
                 }
             }
-            Ok(())
+            read_error.map_or(Ok(()), Err)
         })();
         drop(out_tx);
         let written = writer
