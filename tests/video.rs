@@ -114,6 +114,8 @@ fn process(bytes: &[u8], options: ProcessOptions) -> (Vec<FrameResult>, Vec<u8>)
     })
     .expect("run");
     assert_eq!(stats.frames, FRAMES as u64);
+    // Every frame comes out once, in order, the held ones flushed at the end.
+    assert!(results.iter().map(|r| r.index).eq(0..FRAMES as u64));
     (results, writer.finish().expect("flush"))
 }
 
@@ -124,8 +126,9 @@ fn output_frames(bytes: &[u8]) -> Vec<GrayImage> {
         .collect()
 }
 
-/// The filtered k follows the true k within 0.03 after the first frames, through the ramp,
-/// the pause and the change of direction; and it does better than the raw estimates.
+/// The filtered (fixed-lag smoothed) k follows the true k within 0.03 after the first frames,
+/// through the ramp, the pause and the change of direction; and it does better than the causal
+/// filter, which does better than the raw estimates.
 #[test]
 fn filtered_k_follows_the_pan() {
     let frames = clip();
@@ -146,8 +149,8 @@ fn filtered_k_follows_the_pan() {
     imageops::overlay(&mut still, &face, 120, 40);
     let bias = unshear.estimate_gray(&still).k.expect("still face");
     let mut worst = (0.0f64, 0);
-    let (mut worst_raw, mut worst_tracking) = (0.0f64, 0.0f64);
-    let (mut raw_sq, mut filt_sq, mut n) = (0.0, 0.0, 0.0);
+    let (mut worst_raw, mut worst_causal, mut worst_tracking) = (0.0f64, 0.0f64, 0.0f64);
+    let (mut raw_sq, mut causal_sq, mut filt_sq, mut n) = (0.0, 0.0, 0.0, 0.0);
     for (r, (_, k)) in results.iter().zip(&frames).skip(3) {
         let raw = r.k_raw.expect("a face in every frame");
         let e = (r.k - k).abs();
@@ -155,45 +158,52 @@ fn filtered_k_follows_the_pan() {
             worst = (e, r.index);
         }
         worst_raw = worst_raw.max((raw - k).abs());
+        worst_causal = worst_causal.max((r.k_causal - k).abs());
         worst_tracking = worst_tracking.max((r.k - bias - k).abs());
         raw_sq += (raw - k).powi(2);
+        causal_sq += (r.k_causal - k).powi(2);
         filt_sq += (r.k - k).powi(2);
         n += 1.0;
     }
-    let (raw_rms, filt_rms) = ((raw_sq / n).sqrt(), (filt_sq / n).sqrt());
+    let rms = |sq: f64| (sq / n).sqrt();
+    let (raw_rms, causal_rms, filt_rms) = (rms(raw_sq), rms(causal_sq), rms(filt_sq));
     eprintln!(
-        "raw: worst {worst_raw:.4}, rms {raw_rms:.4}; filtered: worst {:.4} at frame {}, rms \
-         {filt_rms:.4}; still-face bias {bias:.4}; filtered minus bias: worst {worst_tracking:.4}",
-        worst.0, worst.1
+        "raw: worst {worst_raw:.4}, rms {raw_rms:.4}; causal filter: worst {worst_causal:.4}, \
+         rms {causal_rms:.4}; smoothed (lag {}): worst {:.4} at frame {}, rms {filt_rms:.4}; \
+         still-face bias {bias:.4}; smoothed minus bias: worst {worst_tracking:.4}",
+        ProcessOptions::default().smoothing_lag,
+        worst.0,
+        worst.1
     );
-    // Measured: filtered worst 0.0335 (raw 0.0366), rms 0.0147 (raw 0.0152); still-face bias
-    // -0.0139, filtered minus that bias worst 0.0322 (equation 5, the retrained filters; the
-    // filters before the retrain gave 0.0392, 0.0448, 0.0149, 0.0162, -0.0175 and 0.0326). The issue's 0.03 is NOT met: the
-    // per-frame estimates of this face are biased low, which no temporal filter removes. The
-    // bounds below hold the measured values with a small margin, so a regression shows.
+    // Measured (equation 5, default filter, smoothing lag 6): smoothed worst 0.0242 at frame
+    // 31, rms 0.0133; the causal filter alone (lag 0, as before the smoother) worst 0.0335,
+    // rms 0.0147; raw per-frame worst 0.0366, rms 0.0152. Still-face bias -0.0139, smoothed
+    // minus that bias worst 0.0198: what remains is mostly this face's own asymmetry, which no
+    // temporal filter removes. The issue's 0.03 is met with a margin of 0.0058; lags 2 to 24
+    // all stay within 0.0260 (UNSHEAR_TUNE=1 prints the sweep).
     assert!(
-        worst.0 <= 0.042,
+        worst.0 <= 0.03,
         "filtered k off by {:.4} at frame {}",
         worst.0,
         worst.1
     );
     assert!(
-        worst_tracking <= 0.035,
+        worst_tracking <= 0.025,
         "filtered k minus the face's bias off by {worst_tracking:.4}"
     );
     assert!(
-        filt_rms < raw_rms,
-        "filtering must help: {filt_rms} vs {raw_rms}"
+        filt_rms < causal_rms && causal_rms < raw_rms,
+        "filtering must help: {filt_rms} vs {causal_rms} vs {raw_rms}"
     );
     assert!(
-        worst.0 < worst_raw,
-        "filtering must help: {} vs {worst_raw}",
+        worst.0 < worst_causal && worst_causal < worst_raw,
+        "filtering must help: {} vs {worst_causal} vs {worst_raw}",
         worst.0
     );
 }
 
 /// Every output frame is the input frame de-sheared by the filtered k (exactly, the Y plane),
-/// and that correction moves no pixel of the face rows more than 5 px away from where the
+/// and that correction moves no pixel of the face rows more than 3.7 px away from where the
 /// correction with the true k puts it (the displacement is |k - k_true| * |y - H/2|).
 #[test]
 fn corrected_frames_match_a_correction_with_the_true_k() {
@@ -224,8 +234,10 @@ fn corrected_frames_match_a_correction_with_the_true_k() {
         }
     }
     eprintln!("worst displacement against the true-k correction on the face rows: {worst:.2} px");
-    // Measured: 4.82 px (filtered k off by 0.039 at worst); the bound holds it.
-    assert!(worst <= 5.0, "displacement {worst:.2} px");
+    // Measured: 2.97 px (smoothed k off by 0.0242 at worst; the causal filter alone, off by
+    // 0.0335, would give 0.0335 x 123 = 4.1 px). The bound is the issue's 0.03 in k over these
+    // rows: 0.03 x 123 = 3.69 px.
+    assert!(worst <= 0.03 * reach, "displacement {worst:.2} px");
 }
 
 /// y4m in, y4m out, no correction: the same bytes (library and command line, pipe and file).
@@ -300,6 +312,21 @@ fn command_line_json_folders_and_errors() {
         assert!(obj["k"].is_number());
         assert!(obj["k_raw"].is_number() || obj["k_raw"].is_null());
     }
+    // The causal filter alone (no smoothing lag): the same lines, the same raw estimates.
+    let out = unshear()
+        .args(["video", "--json", "--smoothing-lag", "0"])
+        .arg(&clip_path)
+        .output()
+        .expect("runs");
+    assert!(out.status.success());
+    let causal: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("JSON line"))
+        .collect();
+    assert_eq!(causal.len(), lines.len());
+    for (a, b) in causal.iter().zip(&lines) {
+        assert_eq!((&a["frame"], &a["k_raw"]), (&b["frame"], &b["k_raw"]));
+    }
     // The face objects have the shape `estimate --json` gives.
     let face = &lines[0]["faces"][0];
     let mut keys: Vec<&str> = face
@@ -358,6 +385,12 @@ fn command_line_json_folders_and_errors() {
         .write_stdin(Vec::new())
         .assert()
         .code(2);
+    // A lag that would hold too many frames in memory.
+    unshear()
+        .args(["video", "--smoothing-lag", "100000"])
+        .arg(&clip_path)
+        .assert()
+        .code(2);
     // Garbage on stdin.
     unshear()
         .args(["video", "-", "-o", "-"])
@@ -373,9 +406,13 @@ fn image_frames_are_corrected_like_images() {
     let unshear = video_unshear();
     let mut processor = VideoProcessor::new(&unshear, ProcessOptions::default());
     let img = DynamicImage::ImageLuma8(frames[0].0.clone());
-    let (out, r) = processor
+    let mut done: Vec<_> = processor
         .process(VideoFrame::Image(img.clone()))
-        .expect("process");
+        .expect("process")
+        .into_iter()
+        .collect();
+    done.extend(processor.finish().expect("flush"));
+    let (out, r) = done.swap_remove(0);
     let k = r.k_applied.expect("corrected");
     let (want, _) = remove_shear(
         &img,
@@ -386,9 +423,36 @@ fn image_frames_are_corrected_like_images() {
     assert_eq!(out, VideoFrame::Image(want));
 }
 
-/// Grid search of the filter parameters on this clip's raw estimates (UNSHEAR_TUNE=1).
+/// Grid search of the filter parameters and the smoother's lag on this clip's raw estimates
+/// (UNSHEAR_TUNE=1). The raw estimates do not depend on the lag (the tracker and the estimator
+/// start from the causal filter's k), so this replays the pipeline exactly.
 fn tune(results: &[FrameResult], frames: &[(GrayImage, f64)]) {
-    use unshear::video::temporal::{FilterParams, ShearFilter};
+    use unshear::video::temporal::{FilterParams, ShearFilter, ShearSmoother};
+    for ms in [0.015, 0.02, 0.03] {
+        for acc in [0.003, 0.005, 0.01, 0.015] {
+            for lag in [0, 1, 2, 3, 4, 5, 6, 8, 10, 12, 16, 24] {
+                let mut s = ShearSmoother::new(
+                    FilterParams {
+                        measurement_sigma: ms,
+                        acceleration_sigma: acc,
+                        ..Default::default()
+                    },
+                    lag,
+                );
+                let mut ks: Vec<f64> = results.iter().filter_map(|r| s.push(r.k_raw).1).collect();
+                ks.extend(s.flush());
+                let (mut worst, mut sq) = (0.0f64, 0.0);
+                for (k, (_, truth)) in ks.iter().zip(frames).skip(3) {
+                    worst = worst.max((k - truth).abs());
+                    sq += (k - truth).powi(2);
+                }
+                eprintln!(
+                    "smoother ms {ms} acc {acc} lag {lag}: worst {worst:.4} rms {:.4}",
+                    (sq / 77.0).sqrt()
+                );
+            }
+        }
+    }
     for r in results {
         eprint!(
             "{:.3} ",
@@ -417,4 +481,24 @@ fn tune(results: &[FrameResult], frames: &[(GrayImage, f64)]) {
             );
         }
     }
+}
+
+/// A stream cut inside a frame: an error, but every complete frame before the cut (the ones
+/// held back for the smoother included) is still processed and written, in order.
+#[test]
+fn truncated_stream_still_yields_the_frames_before_the_cut() {
+    let frames: Vec<_> = clip().into_iter().take(8).collect();
+    let bytes = y4m_bytes(&frames);
+    let cut = &bytes[..bytes.len() - 100];
+    let unshear = video_unshear();
+    let mut reader = Y4mReader::new(cut, 1 << 24).expect("stream");
+    let mut writer = Y4mWriter::with_header(Vec::new(), reader.header()).expect("header");
+    let mut processor = VideoProcessor::new(&unshear, ProcessOptions::default());
+    let mut seen = Vec::new();
+    let result = run(&mut reader, Some(&mut writer), &mut processor, |r| {
+        seen.push(r.index)
+    });
+    assert!(result.is_err(), "the cut is reported");
+    assert_eq!(seen, (0..7).collect::<Vec<u64>>());
+    assert_eq!(output_frames(&writer.finish().expect("flush")).len(), 7);
 }

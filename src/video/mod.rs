@@ -2,7 +2,7 @@
 //! corrected in their own colour layout.
 //!
 //! ```text
-//! y4m / frame folder ─▶ FrameSource ─▶ FaceTracker ─▶ Unshear::estimate_face ─▶ ShearFilter
+//! y4m / frame folder ─▶ FrameSource ─▶ FaceTracker ─▶ Unshear::estimate_face ─▶ ShearSmoother
 //!                                                                                    │ k
 //!                 FrameSink ◀─ remove_shear_yuv / warp (Y, U, V planes) ◀────────────┘
 //! ```
@@ -13,9 +13,11 @@
 //! * [`frames`]: folders of numbered still images in and out.
 //! * [`tracker`]: faces followed from frame to frame in a window around their last position, with
 //!   a full (down-scaled) detection every N frames or when the track is lost.
-//! * [`temporal`]: a constant-velocity Kalman filter on `k` with innovation gating; without a
-//!   face the filtered `k` is held, then decays to 0.
-//! * [`process`]: all of the above per frame ([`VideoProcessor`]) and the threaded
+//! * [`temporal`]: a constant-velocity Kalman filter on `k` with innovation gating, and a
+//!   fixed-lag smoother over it (each frame's `k` from the frames after it too, at a latency of
+//!   a few frames); without a face the filtered `k` is held, then decays to 0.
+//! * [`process`]: all of the above per frame ([`VideoProcessor`], which holds frames back
+//!   for the smoother's lag and flushes them at the end) and the threaded
 //!   read → process → write loop ([`run`]).
 //!
 //! # Formats

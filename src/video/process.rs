@@ -1,13 +1,14 @@
 //! One frame at a time: track the faces, estimate `k` on each, filter it over time, correct the
 //! frame; and the threaded loop that reads, processes and writes a whole clip.
 
+use std::collections::VecDeque;
 use std::sync::mpsc;
 use std::time::Instant;
 
 use image::GrayImage;
 use rayon::prelude::*;
 
-use super::temporal::{FilterParams, ShearFilter, Update};
+use super::temporal::{FilterParams, ShearSmoother, Update, DEFAULT_SMOOTHING_LAG};
 use super::tracker::{FaceTracker, TrackerParams, TrackerStats};
 use super::VideoFrame;
 use crate::pipeline::combined_shear;
@@ -24,13 +25,16 @@ pub enum KSource {
     Raw,
 }
 
-/// Settings of a video run (default: correct with the filtered `k`, linear interpolation).
+/// Settings of a video run (default: correct with the smoothed `k`, linear interpolation).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ProcessOptions {
     /// Face tracking.
     pub tracker: TrackerParams,
     /// Temporal filter of `k`.
     pub filter: FilterParams,
+    /// Lag of the fixed-lag smoother, in frames: each frame is corrected (and reported) once
+    /// this many later frames have been estimated; 0 for the causal filter alone.
+    pub smoothing_lag: usize,
     /// Correct the frames (false: analysis only, frames pass through unchanged).
     pub correct: bool,
     /// Which `k` corrects.
@@ -44,6 +48,7 @@ impl Default for ProcessOptions {
         Self {
             tracker: TrackerParams::default(),
             filter: FilterParams::default(),
+            smoothing_lag: DEFAULT_SMOOTHING_LAG,
             correct: true,
             k_source: KSource::Filtered,
             interpolation: Interpolation::Linear,
@@ -58,8 +63,12 @@ pub struct FrameResult {
     pub index: u64,
     /// This frame's own estimate: the median of its faces' `k`, `None` without a usable face.
     pub k_raw: Option<f64>,
-    /// The filtered `k` after this frame.
+    /// This frame's temporally filtered `k`: smoothed with the [`ProcessOptions::smoothing_lag`]
+    /// frames after it (the causal filter's value when the lag is 0).
     pub k: f64,
+    /// The causal filter's `k` after this frame (from this and earlier frames only; what the
+    /// tracker and the estimator of the next frame start from).
+    pub k_causal: f64,
     /// The shear the frame was corrected by (`None` when correction is off).
     pub k_applied: Option<f64>,
     /// What the filter did with `k_raw`.
@@ -68,14 +77,20 @@ pub struct FrameResult {
     pub faces: Vec<FaceReport>,
 }
 
-/// Tracker, estimator and filter for one clip.
+/// Tracker, estimator and smoother for one clip.
+///
+/// Frames go in with [`Self::process`] and come out, in order, [`ProcessOptions::smoothing_lag`]
+/// frames later (the smoother needs the estimates of the frames after each one); at the end of
+/// the stream [`Self::finish`] returns the frames still held.
 #[derive(Debug)]
 pub struct VideoProcessor<'a> {
     unshear: &'a Unshear,
     tracker: FaceTracker,
-    filter: ShearFilter,
+    smoother: ShearSmoother,
     options: ProcessOptions,
     next_index: u64,
+    /// Analysed frames waiting for their smoothed `k`, oldest first.
+    pending: VecDeque<(VideoFrame, FrameResult)>,
 }
 
 impl<'a> VideoProcessor<'a> {
@@ -84,9 +99,10 @@ impl<'a> VideoProcessor<'a> {
         Self {
             unshear,
             tracker: FaceTracker::new(unshear.detector().clone(), options.tracker),
-            filter: ShearFilter::new(options.filter),
+            smoother: ShearSmoother::new(options.filter, options.smoothing_lag),
             options,
             next_index: 0,
+            pending: VecDeque::with_capacity(options.smoothing_lag.min(64) + 1),
         }
     }
 
@@ -97,15 +113,23 @@ impl<'a> VideoProcessor<'a> {
 
     /// Estimates rejected by the filter so far.
     pub fn rejected(&self) -> u64 {
-        self.filter.rejected()
+        self.smoother.filter().rejected()
     }
 
-    /// Tracks, estimates and filters one frame's luma (no correction).
-    pub fn analyse(&mut self, gray: &GrayImage) -> FrameResult {
-        let boxes = self.tracker.track(gray, self.filter.k());
+    /// Frames taken in but not returned yet.
+    pub fn pending(&self) -> usize {
+        self.pending.len()
+    }
+
+    /// Tracks and estimates one frame's luma and runs the causal filter; `k` is still the
+    /// causal value. Returns the result and the smoothed `k` of the oldest pending frame, if
+    /// it is due.
+    fn analyse(&mut self, gray: &GrayImage) -> (FrameResult, Option<f64>) {
+        // Start from the causal filtered shear: the face is then searched for, and its
+        // features located, in a nearly upright view.
+        let view_k = self.smoother.filter().k();
+        let boxes = self.tracker.track(gray, view_k);
         let unshear = self.unshear;
-        // Start from the filtered shear: the features are then searched in a nearly upright view.
-        let view_k = self.filter.k();
         let faces: Vec<FaceReport> = if boxes.len() > 1 {
             boxes
                 .par_iter()
@@ -118,26 +142,62 @@ impl<'a> VideoProcessor<'a> {
                 .collect()
         };
         let k_raw = combined_shear(&faces);
-        let update = self.filter.update(k_raw);
+        let (update, due) = self.smoother.push(k_raw);
         let index = self.next_index;
         self.next_index += 1;
-        FrameResult {
+        let k_causal = self.smoother.filter().k();
+        let result = FrameResult {
             index,
             k_raw,
-            k: self.filter.k(),
+            k: k_causal,
+            k_causal,
             k_applied: None,
             update,
             faces,
-        }
+        };
+        (result, due)
     }
 
-    /// [`Self::analyse`], then the frame corrected by the chosen `k` (unchanged when correction
-    /// is off).
+    /// Takes one frame in (tracks, estimates, filters) and returns the frame that is now due,
+    /// `smoothing_lag` frames older, with its result and corrected by the chosen `k` (unchanged
+    /// when correction is off); `None` while the first `smoothing_lag` frames fill the buffer.
     ///
     /// # Errors
     /// Only if the shear to apply is not finite (which the filter never produces).
-    pub fn process(&mut self, frame: VideoFrame) -> Result<(VideoFrame, FrameResult)> {
-        let mut result = self.analyse(&frame.luma());
+    pub fn process(&mut self, frame: VideoFrame) -> Result<Option<(VideoFrame, FrameResult)>> {
+        let (result, due) = self.analyse(&frame.luma());
+        self.pending.push_back((frame, result));
+        let Some(k) = due else {
+            return Ok(None);
+        };
+        match self.pending.pop_front() {
+            Some(entry) => self.emit(entry, k).map(Some),
+            None => Ok(None),
+        }
+    }
+
+    /// The end of the stream: every frame still held, in order, with `k` smoothed over all the
+    /// frames seen and corrected as by [`Self::process`].
+    ///
+    /// # Errors
+    /// As [`Self::process`].
+    pub fn finish(&mut self) -> Result<Vec<(VideoFrame, FrameResult)>> {
+        let ks = self.smoother.flush();
+        let entries: Vec<_> = self.pending.drain(..).collect();
+        entries
+            .into_iter()
+            .zip(ks)
+            .map(|(entry, k)| self.emit(entry, k))
+            .collect()
+    }
+
+    /// Sets the smoothed `k` of a frame and corrects it.
+    fn emit(
+        &self,
+        (frame, mut result): (VideoFrame, FrameResult),
+        k_smoothed: f64,
+    ) -> Result<(VideoFrame, FrameResult)> {
+        result.k = k_smoothed;
         if !self.options.correct {
             return Ok((frame, result));
         }
@@ -181,12 +241,14 @@ pub struct RunStats {
 const QUEUE: usize = 3;
 
 /// Reads every frame of `source`, processes it and writes it to `sink` (if any), calling
-/// `on_frame` with each frame's result in order. Reading and writing run on threads of their
-/// own, so that parsing and serialising overlap with detection and correction.
+/// `on_frame` with each frame's result in order (each frame `smoothing_lag` frames after it was
+/// read; the held frames are flushed at the end of the source). Reading and writing run on
+/// threads of their own, so that parsing and serialising overlap with detection and correction.
 ///
 /// # Errors
 /// The first error of the source, the processing or the sink; processing stops there (frames
-/// already written stay written).
+/// already written stay written; after a source error the frames read before it, held for the
+/// smoother, are still processed and written).
 pub fn run(
     source: &mut dyn FrameSource,
     sink: Option<&mut dyn FrameSink>,
@@ -218,16 +280,35 @@ pub fn run(
             sink.finish()
         });
         let processed = (|| -> Result<()> {
-            for item in in_rx {
-                let (frame, result) = processor.process(item?)?;
+            // The writer stops only on an error, which is reported below.
+            let mut deliver = |(frame, result): (VideoFrame, FrameResult)| {
                 frames += 1;
                 on_frame(&result);
-                if out_tx.send(frame).is_err() {
-                    // The writer stopped on an error; it is reported below.
+                out_tx.send(frame).is_ok()
+            };
+            let mut read_error = None;
+            for item in in_rx {
+                let frame = match item {
+                    Ok(frame) => frame,
+                    Err(e) => {
+                        read_error = Some(e);
+                        break;
+                    }
+                };
+                if let Some(out) = processor.process(frame)? {
+                    if !deliver(out) {
+                        return Ok(());
+                    }
+                }
+            }
+            // The frames held for the smoother go out even when the source failed, so that a
+            // truncated stream yields every frame read before the error.
+            for out in processor.finish()? {
+                if !deliver(out) {
                     break;
                 }
             }
-            Ok(())
+            read_error.map_or(Ok(()), Err)
         })();
         drop(out_tx);
         let written = writer

@@ -18,7 +18,7 @@ use crate::report::{face, r4, JsonFace};
 use crate::{load_models, usage_error};
 use unshear::imageio::WriteOptions;
 use unshear::video::frames::{list_frames, FrameFolderReader, FrameFolderWriter};
-use unshear::video::temporal::FilterParams;
+use unshear::video::temporal::{FilterParams, DEFAULT_SMOOTHING_LAG};
 use unshear::video::tracker::TrackerParams;
 use unshear::video::y4m::{Y4mReader, Y4mWriter};
 use unshear::video::{
@@ -65,6 +65,11 @@ pub struct VideoArgs {
     /// found: 20 * width / PX pixels).
     #[arg(long, value_name = "PX", default_value_t = 640)]
     pub detect_width: u32,
+    /// Smooth k over this many later frames (a fixed-lag smoother): each frame is corrected
+    /// once N more frames have been estimated, so output lags input by N frames (0: the causal
+    /// filter, no delay).
+    #[arg(long, value_name = "N", default_value_t = DEFAULT_SMOOTHING_LAG)]
+    pub smoothing_lag: usize,
     /// Without a face, hold the filtered k for this many seconds...
     #[arg(long, value_name = "SECONDS", default_value_t = 0.5)]
     pub hold: f64,
@@ -86,6 +91,9 @@ pub struct VideoArgs {
     #[command(flatten)]
     pub model: ModelArgs,
 }
+
+/// Largest `--smoothing-lag`: the processor holds that many decoded frames in memory.
+const MAX_SMOOTHING_LAG: usize = 250;
 
 /// `--k-source`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -197,10 +205,15 @@ pub fn video(a: VideoArgs) -> Result<()> {
     if a.redetect == 0 || a.lost_interval == 0 {
         usage_error("--redetect and --lost-interval must be at least 1");
     }
+    if a.smoothing_lag > MAX_SMOOTHING_LAG {
+        usage_error(&format!(
+            "--smoothing-lag must be at most {MAX_SMOOTHING_LAG} frames (frames are held in memory)"
+        ));
+    }
     let mut unshear = load_models(&a.model)?;
     if a.model.shear_model.is_none() {
         // Per frame, equation 5 is the steadiest of the models (synthetic clip in
-        // tests/video.rs: raw rms error 0.015, against 0.024 with shear-roll and 0.048 with
+        // tests/video.rs: raw rms error 0.015, against 0.025 with shear-roll and 0.048 with
         // shear-roll-yaw, whose roll and mouth terms add frame-to-frame noise).
         unshear.set_model(unshear::estimate::ShearModel::Equation5);
     }
@@ -217,6 +230,7 @@ pub fn video(a: VideoArgs) -> Result<()> {
             ..Default::default()
         },
         filter: FilterParams::default().with_times(a.hold, a.decay, fps),
+        smoothing_lag: a.smoothing_lag,
         correct: !a.no_correct,
         k_source: match a.k_source {
             KSourceArg::Filtered => KSource::Filtered,
