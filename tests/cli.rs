@@ -127,9 +127,15 @@ fn min_face_skips_smaller_boxes() {
     let (all, bounded) = (faces_with("0"), faces_with("100"));
     assert_eq!((all.len(), bounded.len()), (1, 1), "{all:?} {bounded:?}");
     for i in 0..4 {
-        assert!((all[0].0[i] - bounded[0].0[i]).abs() <= 4.0, "{all:?} {bounded:?}");
+        assert!(
+            (all[0].0[i] - bounded[0].0[i]).abs() <= 4.0,
+            "{all:?} {bounded:?}"
+        );
     }
-    assert!((all[0].1 - bounded[0].1).abs() <= 0.01, "{all:?} {bounded:?}");
+    assert!(
+        (all[0].1 - bounded[0].1).abs() <= 0.01,
+        "{all:?} {bounded:?}"
+    );
     assert!(faces_with("230").is_empty());
 }
 
@@ -167,6 +173,14 @@ fn usage_errors_exit_2() {
         .assert()
         .code(2);
     unshear().args(["bogus"]).assert().code(2);
+    // The fallback cascade goes with the built-in main cascade and the retries only.
+    for other in [["--cascade", "c.xml"].as_slice(), &["--no-shear-search"]] {
+        unshear()
+            .args(["estimate", "--fallback-cascade", "x.jpg"])
+            .args(other)
+            .assert()
+            .code(2);
+    }
     let a = fixture("subject01.normal.jpeg");
     let b = fixture("subject03.normal.jpeg");
     unshear()

@@ -175,3 +175,42 @@ fn de_sheared_detection_finds_faces_the_single_pass_misses() {
         assert!((est - k).abs() <= 0.05, "{name}: true {k}, estimated {est}");
     }
 }
+
+/// The fallback cascade is asked only when the main detector gives no accepted estimate: with a
+/// main detector that cannot fire (its smallest box is larger than the image), the fallback
+/// (`haarcascade_frontalface_default`) finds each fixture face, its box mapped onto alt2's
+/// size, and the shear is estimated within 0.05 as with alt2; without a fallback nothing is
+/// found.
+#[test]
+fn fallback_cascade_finds_what_the_main_detector_misses() {
+    use unshear::detect::{Cascade, DetectorParams, FaceDetector};
+    use unshear::pipeline::FallbackDetector;
+    let blind = FaceDetector::new(
+        Cascade::frontal_face_alt2(),
+        DetectorParams {
+            min_size: (10_000, 10_000),
+            ..DetectorParams::default()
+        },
+    );
+    let filters = unshear::filters::EyeFilters::embedded().expect("built-in filters");
+    let mut unshear = Unshear::new(blind, filters);
+    let alt2 = Unshear::with_defaults().expect("built-in models");
+    for path in fixtures() {
+        let img = sheared(&load(&path), 0.2);
+        unshear.set_fallback_detector(None);
+        assert!(unshear.estimate(&img).faces.is_empty());
+        unshear.set_fallback_detector(Some(FallbackDetector::frontal_face_default(
+            DetectorParams::default(),
+        )));
+        let report = unshear.estimate(&img);
+        assert_eq!(report.faces.len(), 1, "{}", path.display());
+        let main = alt2.estimate(&img);
+        let (b, a) = (report.faces[0].face_box, main.faces[0].face_box);
+        // Same face, same size to within the spread of the two cascades' box ratio (quartiles
+        // 0.94-1.0 around the 0.968 used).
+        assert!(b.iou(&a) > 0.8, "{}: {b:?} vs alt2 {a:?}", path.display());
+        assert!((b.width / a.width - 1.0).abs() < 0.08, "{b:?} vs {a:?}");
+        let k = report.k.expect("an estimate");
+        assert!((k - 0.2).abs() <= 0.05, "{}: {k}", path.display());
+    }
+}

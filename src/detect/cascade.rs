@@ -24,6 +24,11 @@ use crate::{Error, Result};
 /// kept in the file).
 const FRONTAL_FACE_ALT2_XML: &str = include_str!("../../models/haarcascade_frontalface_alt2.xml");
 
+/// The embedded second cascade (OpenCV's `haarcascade_frontalface_default.xml`, Intel licence
+/// header kept in the file): the pipeline's fallback when alt2 finds no usable face.
+const FRONTAL_FACE_DEFAULT_XML: &str =
+    include_str!("../../models/haarcascade_frontalface_default.xml");
+
 /// OpenCV lowers every stage threshold by this much (`THRESHOLD_EPS` in cascadedetect.cpp) so a
 /// window scoring exactly the trained threshold passes despite rounding; we copy it to agree.
 const THRESHOLD_EPS: f32 = 1e-5;
@@ -111,6 +116,20 @@ impl Cascade {
             Ok(c) => c,
             // The embedded file is fixed at compile time and covered by the tests, so this
             // cannot happen in a released build.
+            Err(e) => unreachable!("embedded cascade is invalid: {e}"),
+        })
+        .clone()
+    }
+
+    /// OpenCV's `haarcascade_frontalface_default.xml` (Viola and Jones's stump cascade, 25
+    /// stages), embedded in the library. It fires on some faces that alt2 misses (rolled, partly
+    /// covered) and on more non-faces, so the pipeline only asks it when alt2 finds no usable
+    /// face. Parsed once per process.
+    pub fn frontal_face_default() -> Cascade {
+        static CELL: OnceLock<Cascade> = OnceLock::new();
+        CELL.get_or_init(|| match Cascade::from_xml(FRONTAL_FACE_DEFAULT_XML) {
+            Ok(c) => c,
+            // Fixed at compile time and covered by the tests, as alt2 above.
             Err(e) => unreachable!("embedded cascade is invalid: {e}"),
         })
         .clone()
@@ -591,6 +610,15 @@ pub(crate) mod tests {
         assert!((c.data.stages[0].threshold - (0.350_692_3 - 1e-5)).abs() < 1e-6);
         // Parsed once: a second call shares the arrays.
         assert!(Arc::ptr_eq(&c.data, &Cascade::frontal_face_alt2().data));
+    }
+
+    #[test]
+    fn parses_embedded_default() {
+        let c = Cascade::frontal_face_default();
+        assert_eq!(c.window_size(), (24, 24));
+        assert_eq!(c.stage_count(), 25);
+        assert!(c.data.stumps_only);
+        assert!(Arc::ptr_eq(&c.data, &Cascade::frontal_face_default().data));
     }
 
     #[test]

@@ -63,6 +63,12 @@ pub struct ModelArgs {
     /// no face is found.
     #[arg(long)]
     pub no_shear_search: bool,
+    /// Also ask the built-in second cascade (OpenCV's frontalface_default) when the main one
+    /// finds no face with an accepted estimate: more faces found, but the extra ones are hard
+    /// and their estimates often wrong (see the README's *Accuracy*). Not with --cascade or
+    /// --no-shear-search.
+    #[arg(long, conflicts_with_all = ["cascade", "no_shear_search"])]
+    pub fallback_cascade: bool,
     /// Smallest face to look for: the detector's minimum box width and height, in pixels
     /// [default: the cascade's window, 20 px, as OpenCV; `eval shear`: 1.5 times
     /// --min-eye-distance]. Larger is faster: most of the detector's time goes to the smallest

@@ -26,6 +26,7 @@ use report::JsonLine;
 use unshear::detect::{Cascade, DetectorParams, FaceDetector};
 use unshear::filters::{EyeFilters, FilterType};
 use unshear::imageio::{self, WriteOptions};
+use unshear::pipeline::FallbackDetector;
 use unshear::pipeline::{CorrectOptions, ImageReport, Region};
 use unshear::{Shear, Unshear};
 
@@ -101,6 +102,10 @@ fn load_models(m: &ModelArgs) -> Result<Unshear> {
     }
     if m.no_shear_search {
         unshear.set_shear_hypotheses(&[]);
+    } else if m.fallback_cascade {
+        unshear.set_fallback_detector(Some(FallbackDetector::frontal_face_default(
+            *unshear.detector().params(),
+        )));
     }
     if let Some(model) = m.shear_model {
         unshear.set_model(model.into());
