@@ -52,6 +52,20 @@ fn bench(c: &mut Criterion) {
     group.bench_function("all threads", |b| {
         b.iter(|| unshear.detector().detect(&frame))
     });
+    // `--min-face 60`: the smallest scales, where most windows are, skipped.
+    let min_face_60 = unshear::detect::FaceDetector::new(
+        unshear::detect::Cascade::frontal_face_alt2(),
+        unshear::detect::DetectorParams {
+            min_size: (60, 60),
+            ..Default::default()
+        },
+    );
+    group.bench_function("min face 60, 1 thread", |b| {
+        single_thread(|| b.iter(|| min_face_60.detect(&frame)))
+    });
+    group.bench_function("min face 60, all threads", |b| {
+        b.iter(|| min_face_60.detect(&frame))
+    });
     group.finish();
 
     let mut group = c.benchmark_group("estimate whole 1920x1080 frame");
