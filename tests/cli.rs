@@ -139,6 +139,27 @@ fn min_face_skips_smaller_boxes() {
     assert!(faces_with("230").is_empty());
 }
 
+/// `--shear-hypotheses` sets the de-sheared views searched when the image as it is gives no
+/// face: a face sheared by 0.7 is missed as it is and in the view de-sheared by -0.7 (sheared
+/// further), and found and measured in the view de-sheared by 0.7.
+#[test]
+fn shear_hypotheses_choose_the_views_searched() {
+    let dir = tempfile::tempdir().expect("temp");
+    let img = distorted(dir.path(), 0.7);
+    let k_with = |option: &str| {
+        let out = unshear()
+            .args(["estimate", "--json", option])
+            .arg(&img)
+            .assert()
+            .success();
+        json_lines(&out.get_output().stdout)[0]["k"].as_f64()
+    };
+    assert_eq!(k_with("--no-shear-search"), None);
+    assert_eq!(k_with("--shear-hypotheses=-0.7"), None);
+    let k = k_with("--shear-hypotheses=0.7").expect("found in the de-sheared view");
+    assert!((k - 0.7).abs() <= 0.05, "{k}");
+}
+
 #[test]
 fn one_bad_file_fails_the_batch_with_1_but_the_rest_is_processed() {
     let dir = tempfile::tempdir().expect("temp");
@@ -180,6 +201,9 @@ fn usage_errors_exit_2() {
             .args(other)
             .assert()
             .code(2);
+    }
+    for bad in ["--shear-hypotheses=nan", "--shear-hypotheses=0.3,9"] {
+        unshear().args(["estimate", bad, "x.jpg"]).assert().code(2);
     }
     let a = fixture("subject01.normal.jpeg");
     let b = fixture("subject03.normal.jpeg");

@@ -25,7 +25,7 @@ use crate::{Error, Result};
 const FRONTAL_FACE_ALT2_XML: &str = include_str!("../../models/haarcascade_frontalface_alt2.xml");
 
 /// The embedded second cascade (OpenCV's `haarcascade_frontalface_default.xml`, Intel licence
-/// header kept in the file): the pipeline's fallback when alt2 finds no usable face.
+/// header kept in the file): the pipeline's optional fallback when alt2 finds no usable face.
 const FRONTAL_FACE_DEFAULT_XML: &str =
     include_str!("../../models/haarcascade_frontalface_default.xml");
 
@@ -112,24 +112,24 @@ impl Cascade {
     /// Parsed once per process; later calls clone a shared handle.
     pub fn frontal_face_alt2() -> Cascade {
         static CELL: OnceLock<Cascade> = OnceLock::new();
-        CELL.get_or_init(|| match Cascade::from_xml(FRONTAL_FACE_ALT2_XML) {
-            Ok(c) => c,
-            // The embedded file is fixed at compile time and covered by the tests, so this
-            // cannot happen in a released build.
-            Err(e) => unreachable!("embedded cascade is invalid: {e}"),
-        })
-        .clone()
+        Self::embedded(&CELL, FRONTAL_FACE_ALT2_XML)
     }
 
     /// OpenCV's `haarcascade_frontalface_default.xml` (Viola and Jones's stump cascade, 25
     /// stages), embedded in the library. It fires on some faces that alt2 misses (rolled, partly
-    /// covered) and on more non-faces, so the pipeline only asks it when alt2 finds no usable
-    /// face. Parsed once per process.
+    /// covered) and on more non-faces, so the pipeline asks it only on request
+    /// ([`crate::pipeline::FallbackDetector`]). Parsed once per process.
     pub fn frontal_face_default() -> Cascade {
         static CELL: OnceLock<Cascade> = OnceLock::new();
-        CELL.get_or_init(|| match Cascade::from_xml(FRONTAL_FACE_DEFAULT_XML) {
+        Self::embedded(&CELL, FRONTAL_FACE_DEFAULT_XML)
+    }
+
+    /// The embedded cascade `xml`, parsed on first use into `cell`.
+    fn embedded(cell: &'static OnceLock<Cascade>, xml: &str) -> Cascade {
+        cell.get_or_init(|| match Cascade::from_xml(xml) {
             Ok(c) => c,
-            // Fixed at compile time and covered by the tests, as alt2 above.
+            // The embedded files are fixed at compile time and covered by the tests, so this
+            // cannot happen in a released build.
             Err(e) => unreachable!("embedded cascade is invalid: {e}"),
         })
         .clone()

@@ -63,6 +63,16 @@ pub struct ModelArgs {
     /// no face is found.
     #[arg(long)]
     pub no_shear_search: bool,
+    /// Shears whose de-sheared views are searched when the image as it is gives no face with an
+    /// accepted estimate, comma-separated [default: 0.3,-0.3,0.5,-0.5].
+    #[arg(
+        long,
+        value_name = "K,...",
+        value_delimiter = ',',
+        allow_negative_numbers = true,
+        conflicts_with = "no_shear_search"
+    )]
+    pub shear_hypotheses: Option<Vec<f64>>,
     /// Also ask the built-in second cascade (OpenCV's frontalface_default) when the main one
     /// finds no face with an accepted estimate: more faces found, but the extra ones are hard
     /// and their estimates often wrong (see the README's *Accuracy*). Not with --cascade or

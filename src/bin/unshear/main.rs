@@ -100,6 +100,12 @@ fn load_models(m: &ModelArgs) -> Result<Unshear> {
     if !(0.0..=1.0).contains(&m.min_confidence) {
         bail!("--min-confidence {} is outside 0 to 1", m.min_confidence);
     }
+    if let Some(hypotheses) = &m.shear_hypotheses {
+        if hypotheses.iter().any(|k| !k.is_finite() || k.abs() > 2.0) {
+            usage_error("--shear-hypotheses must be numbers between -2 and 2");
+        }
+        unshear.set_shear_hypotheses(hypotheses);
+    }
     if m.no_shear_search {
         unshear.set_shear_hypotheses(&[]);
     } else if m.fallback_cascade {
