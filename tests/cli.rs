@@ -35,6 +35,17 @@ fn json_lines(stdout: &[u8]) -> Vec<serde_json::Value> {
         .collect()
 }
 
+/// `unshear estimate --json OPTIONS IMAGE`, which must succeed; its one JSON line.
+fn estimate_json(img: &Path, options: &[&str]) -> serde_json::Value {
+    let out = unshear()
+        .args(["estimate", "--json"])
+        .args(options)
+        .arg(img)
+        .assert()
+        .success();
+    json_lines(&out.get_output().stdout).swap_remove(0)
+}
+
 #[test]
 fn estimate_json_has_the_documented_shape() {
     let out = unshear()
@@ -104,12 +115,7 @@ fn min_face_skips_smaller_boxes() {
     let dir = tempfile::tempdir().expect("temp");
     let img = distorted(dir.path(), 0.3);
     let faces_with = |min_face: &str| {
-        let out = unshear()
-            .args(["estimate", "--json", "--min-face", min_face])
-            .arg(&img)
-            .assert()
-            .success();
-        json_lines(&out.get_output().stdout)[0]["faces"]
+        estimate_json(&img, &["--min-face", min_face])["faces"]
             .as_array()
             .expect("faces")
             .iter()
@@ -146,14 +152,7 @@ fn min_face_skips_smaller_boxes() {
 fn shear_hypotheses_choose_the_views_searched() {
     let dir = tempfile::tempdir().expect("temp");
     let img = distorted(dir.path(), 0.7);
-    let k_with = |option: &str| {
-        let out = unshear()
-            .args(["estimate", "--json", option])
-            .arg(&img)
-            .assert()
-            .success();
-        json_lines(&out.get_output().stdout)[0]["k"].as_f64()
-    };
+    let k_with = |option: &str| estimate_json(&img, &[option])["k"].as_f64();
     assert_eq!(k_with("--no-shear-search"), None);
     assert_eq!(k_with("--shear-hypotheses=-0.7"), None);
     let k = k_with("--shear-hypotheses=0.7").expect("found in the de-sheared view");
