@@ -3,6 +3,8 @@
 # each face is sheared with `unshear distort --canvas expand` for k in {-0.4, -0.2, 0, 0.2, 0.4},
 # then `unshear estimate --json` runs on all of them and a summary per k is printed.
 # Usage: scripts/yale_shear.sh [path/to/yale-faces/images]   (needs python3, no packages)
+# Environment: UNSHEAR (the binary, default target/release/unshear), UNSHEAR_ARGS (extra options
+# for `estimate`, e.g. "--filter-type mosse").
 set -euo pipefail
 images=${1:-../shared/data/yale-faces/images}
 bin=${UNSHEAR:-target/release/unshear}
@@ -14,7 +16,7 @@ for f in "$images"/subject*.normal*; do
     "$bin" distort "$f" --k "$k" --canvas expand -o "$work/${s}_k$k.png"
   done
 done
-"$bin" estimate "$work" --json | python3 -c '
+"$bin" estimate "$work" --json ${UNSHEAR_ARGS:-} | python3 -c '
 import sys, json, re, statistics as st
 rows = []
 for line in sys.stdin:
