@@ -1,5 +1,5 @@
-//! What ASEF and MOSSE training share: each patch normalised and transformed together with the
-//! spectrum of its desired output, into buffers reused from patch to patch, and the finished
+//! What filter training shares: each patch normalised and transformed (for ASEF and MOSSE together
+//! with the spectrum of its desired output), into buffers reused from patch to patch, and the finished
 //! spectrum windowed into a [`Filter`].
 
 use rustfft::num_complex::Complex32;
@@ -37,12 +37,11 @@ impl TrainingSpectra {
     }
 
     /// Normalises `patch` ([`normalize_patch`]) and fills [`Self::patch_spectrum`] with its
-    /// spectrum and [`Self::target_spectrum`] with that of the desired output for a feature
-    /// `(dx, dy)` from the patch centre.
+    /// spectrum (all that UMACE needs).
     ///
     /// # Panics
     /// If `patch.len() != size * size` (a programming error, not a data error).
-    pub(crate) fn load(&mut self, patch: &[f32], dx: f64, dy: f64, sigma: f64) {
+    pub(crate) fn load_patch(&mut self, patch: &[f32]) {
         assert_eq!(
             patch.len(),
             self.size * self.size,
@@ -52,6 +51,15 @@ impl TrainingSpectra {
         normalize_patch(&mut self.patch);
         self.correlator
             .spectrum_into(&self.patch, &mut self.patch_spectrum);
+    }
+
+    /// [`Self::load_patch`], and also fills [`Self::target_spectrum`] with that of the desired output for a feature
+    /// `(dx, dy)` from the patch centre.
+    ///
+    /// # Panics
+    /// If `patch.len() != size * size` (a programming error, not a data error).
+    pub(crate) fn load(&mut self, patch: &[f32], dx: f64, dy: f64, sigma: f64) {
+        self.load_patch(patch);
         desired_output_into(self.size, dx, dy, sigma, &mut self.desired);
         self.correlator
             .spectrum_into(&self.desired, &mut self.target_spectrum);

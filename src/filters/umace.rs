@@ -20,6 +20,7 @@
 use rustfft::num_complex::Complex32;
 
 use super::correlate::Correlator;
+use super::spectra::TrainingSpectra;
 use super::Filter;
 
 /// Floor added to the mean power spectrum, as a fraction of its mean (see the module docs): 1% of
@@ -51,19 +52,16 @@ pub fn normalize_patch(patch: &mut [f32]) {
 /// Sums are kept in `f64` and patches are added in the order given, so the same patches give the
 /// same filter bits on every run.
 pub struct UmaceTrainer {
-    size: usize,
-    correlator: Correlator,
+    spectra: TrainingSpectra,
     sum_spectrum: Vec<(f64, f64)>,
     sum_power: Vec<f64>,
-    spectrum: Vec<Complex32>,
-    patch: Vec<f32>,
     count: u32,
 }
 
 impl std::fmt::Debug for UmaceTrainer {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("UmaceTrainer")
-            .field("size", &self.size)
+            .field("size", &self.spectra.size())
             .field("count", &self.count)
             .finish()
     }
@@ -73,12 +71,9 @@ impl UmaceTrainer {
     /// A trainer for `size x size` patches.
     pub fn new(size: usize) -> Self {
         Self {
-            size,
-            correlator: Correlator::new(size),
+            spectra: TrainingSpectra::new(size),
             sum_spectrum: vec![(0.0, 0.0); size * size],
             sum_power: vec![0.0; size * size],
-            spectrum: vec![Complex32::default(); size * size],
-            patch: vec![0.0; size * size],
             count: 0,
         }
     }
@@ -94,20 +89,12 @@ impl UmaceTrainer {
     /// # Panics
     /// If `patch.len() != size * size` (a programming error, not a data error).
     pub fn add(&mut self, patch: &[f32]) {
-        assert_eq!(
-            patch.len(),
-            self.size * self.size,
-            "training patch must be size x size"
-        );
-        self.patch.copy_from_slice(patch);
-        normalize_patch(&mut self.patch);
-        self.correlator
-            .spectrum_into(&self.patch, &mut self.spectrum);
+        self.spectra.load_patch(patch);
         for ((s, p), x) in self
             .sum_spectrum
             .iter_mut()
             .zip(self.sum_power.iter_mut())
-            .zip(&self.spectrum)
+            .zip(&self.spectra.patch_spectrum)
         {
             let (re, im) = (f64::from(x.re), f64::from(x.im));
             s.0 += re;
@@ -119,11 +106,11 @@ impl UmaceTrainer {
 
     /// Synthesises the filter `h = (D + floor)^-1 m`, Hamming-windowed in space (module docs).
     /// Returns `None` when no patch was added.
-    pub fn finish(mut self) -> Option<Filter> {
+    pub fn finish(self) -> Option<Filter> {
         if self.count == 0 {
             return None;
         }
-        let n = self.size;
+        let n = self.spectra.size();
         let count = f64::from(self.count);
         let mean_power = self.sum_power.iter().sum::<f64>() / (count * (n * n) as f64);
         let floor = REGULARIZATION * mean_power;
@@ -140,12 +127,7 @@ impl UmaceTrainer {
                 }
             })
             .collect();
-        let spectrum = hamming_windowed(&mut self.correlator, &unwindowed);
-        Some(Filter {
-            size: n,
-            spectrum,
-            training_count: self.count,
-        })
+        Some(self.spectra.into_filter(unwindowed, true, self.count))
     }
 }
 
