@@ -2,6 +2,8 @@
 
 mod common;
 
+use common::json_lines;
+
 use std::path::{Path, PathBuf};
 
 use assert_cmd::Command;
@@ -26,13 +28,6 @@ fn distorted(dir: &Path, k: f64) -> PathBuf {
         .assert()
         .success();
     out
-}
-
-fn json_lines(stdout: &[u8]) -> Vec<serde_json::Value> {
-    String::from_utf8_lossy(stdout)
-        .lines()
-        .map(|l| serde_json::from_str(l).expect("each line is JSON"))
-        .collect()
 }
 
 /// `unshear estimate --json OPTIONS IMAGE`, which must succeed; its one JSON line.

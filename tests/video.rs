@@ -265,14 +265,12 @@ fn y4m_round_trips_byte_exactly_without_correction() {
         .expect("binary")
         .args(["video", "-", "-o", "-", "--no-correct"])
         .write_stdin(ffmpeg_like.clone())
-        .output()
-        .expect("runs");
+        .assert()
+        .success();
     assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+        out.get_output().stdout == ffmpeg_like,
+        "stdout differs from stdin"
     );
-    assert!(out.stdout == ffmpeg_like, "stdout differs from stdin");
 }
 
 /// `--json` prints exactly {"frame", "k_raw", "k", "faces"} per frame, faces as `estimate
@@ -288,17 +286,9 @@ fn command_line_json_folders_and_errors() {
     let out = unshear()
         .args(["video", "--json"])
         .arg(&clip_path)
-        .output()
-        .expect("runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let lines: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stdout)
-        .lines()
-        .map(|l| serde_json::from_str(l).expect("JSON line"))
-        .collect();
+        .assert()
+        .success();
+    let lines = common::json_lines(&out.get_output().stdout);
     assert_eq!(lines.len(), 6);
     for (i, l) in lines.iter().enumerate() {
         let obj = l.as_object().expect("object");
@@ -316,13 +306,9 @@ fn command_line_json_folders_and_errors() {
     let out = unshear()
         .args(["video", "--json", "--smoothing-lag", "0"])
         .arg(&clip_path)
-        .output()
-        .expect("runs");
-    assert!(out.status.success());
-    let causal: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stdout)
-        .lines()
-        .map(|l| serde_json::from_str(l).expect("JSON line"))
-        .collect();
+        .assert()
+        .success();
+    let causal = common::json_lines(&out.get_output().stdout);
     assert_eq!(causal.len(), lines.len());
     for (a, b) in causal.iter().zip(&lines) {
         assert_eq!((&a["frame"], &a["k_raw"]), (&b["frame"], &b["k_raw"]));

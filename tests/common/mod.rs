@@ -17,6 +17,15 @@ pub const FACE_JSON_KEYS: [&str; 10] = [
     "roll",
 ];
 
+/// Each line of a command's `--json` output, parsed.
+#[allow(dead_code)] // Not every test file uses every helper.
+pub fn json_lines(stdout: &[u8]) -> Vec<serde_json::Value> {
+    String::from_utf8_lossy(stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("each line is JSON"))
+        .collect()
+}
+
 /// A committed fixture face (tests/fixtures/faces, see SOURCE.md there).
 #[allow(dead_code)] // Not every test file uses every helper.
 pub fn fixture(name: &str) -> PathBuf {
