@@ -179,7 +179,8 @@ pub struct FallbackDetector {
 
 /// Box size of alt2 over `haarcascade_frontalface_default` for the same face: the median over
 /// 455 faces both find (IoU > 0.5) in the first 400 Caltech development images, as OpenCV 4
-/// reports them (quartiles 0.943 and 1.0; the centres agree to under 1% of the box).
+/// reports them (quartiles 0.943 and 1.0; the centres agree to under 1% of the box);
+/// `scripts/cascade_box_scale.py` measures it.
 pub const DEFAULT_CASCADE_BOX_SCALE: f64 = 0.968;
 
 impl FallbackDetector {
