@@ -297,6 +297,17 @@ pub struct Located {
     pub peak: Peak,
 }
 
+/// The nose filter's converged result (see [`FeatureLocator::iterated_nose_shear`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct NoseTip {
+    /// The shear the iteration converged on.
+    k: f64,
+    /// The nose filter's last peak, normalised coordinates of the face as it is.
+    position: Point,
+    /// That peak's peak-to-sidelobe ratio.
+    psr: f64,
+}
+
 /// The four feature points of a face, in image pixels, with their confidences.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FacePoints {
@@ -322,6 +333,11 @@ pub struct FacePoints {
     pub mouth: Option<Point>,
     /// The mouth peak's peak-to-sidelobe ratio (0 without a mouth filter).
     pub mouth_psr: f64,
+    /// The lower nose as the nose filter found it (image pixels), when the nose's estimate set
+    /// the view ([`FeatureLocator::locate_from`]); `None` for a view given by the caller.
+    pub nose_tip: Option<Point>,
+    /// The nose filter's peak-to-sidelobe ratio (0 without `nose_tip`).
+    pub nose_tip_psr: f64,
     /// The shear of the view the features were found in (the nose's estimate, or the `k`
     /// passed to [`FeatureLocator::locate`]).
     pub view_k: f64,
@@ -490,16 +506,35 @@ impl<'f> FeatureLocator<'f> {
         left_eye: Point,
         start_k: f64,
     ) -> f64 {
-        let mut k = self.nose_shear(face, right_eye, left_eye, start_k, true).0;
+        self.iterated_nose(face, right_eye, left_eye, start_k).k
+    }
+
+    /// [`Self::iterated_nose_shear`] with where the nose filter's last peak lies, in the face's
+    /// own normalised coordinates (not de-sheared).
+    fn iterated_nose(
+        &mut self,
+        face: &NormalizedFace,
+        right_eye: Point,
+        left_eye: Point,
+        start_k: f64,
+    ) -> NoseTip {
+        let pivot = right_eye.midpoint(left_eye).y;
+        let (mut k, mut found) = self.nose_shear(face, right_eye, left_eye, start_k, true);
+        let mut view = start_k;
         for _ in 1..NOSE_ITERATIONS {
-            let next = self.nose_shear(face, right_eye, left_eye, k, false).0;
+            let (next, at) = self.nose_shear(face, right_eye, left_eye, k, false);
             let done = (next - k).abs() < NOSE_TOLERANCE;
-            k = next;
+            (view, k, found) = (k, next, at);
             if done {
                 break;
             }
         }
-        k
+        let p = found.position;
+        NoseTip {
+            k,
+            position: Point::new(p.x + view * (p.y - pivot), p.y),
+            psr: found.peak.psr,
+        }
     }
 
     /// Locates both eyes and both nostrils in `face`, looking at the view de-sheared by `k`
@@ -525,8 +560,12 @@ impl<'f> FeatureLocator<'f> {
         let pivot_v = (exp_right.y + exp_left.y) / 2.0;
         let right = self.find(face, exp_right, start_k, pivot_v, EYE_SEARCH, false);
         let left = self.find(face, exp_left, start_k, pivot_v, EYE_SEARCH, true);
-        let k = self.iterated_nose_shear(face, right.position, left.position, start_k);
-        self.locate_in_view(face, k)
+        let tip = self.iterated_nose(face, right.position, left.position, start_k);
+        FacePoints {
+            nose_tip: Some(face.to_image(tip.position)),
+            nose_tip_psr: tip.psr,
+            ..self.locate_in_view(face, tip.k)
+        }
     }
 
     fn locate_in_view(&mut self, face: &NormalizedFace, k: f64) -> FacePoints {
@@ -570,6 +609,8 @@ impl<'f> FeatureLocator<'f> {
             ],
             mouth: mouth.map(|m| to_image(m.position)),
             mouth_psr: mouth.map_or(0.0, |m| m.peak.psr),
+            nose_tip: None,
+            nose_tip_psr: 0.0,
             view_k: k,
         }
     }

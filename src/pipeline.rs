@@ -29,7 +29,7 @@ use crate::features::{
     FacePoints, FeatureLocator, NormalizedFace, EYE_DISTANCE_PER_BOX_WIDTH, LEFT_EYE_IN_BOX,
     RIGHT_EYE_IN_BOX,
 };
-use crate::filters::{Correlator, EyeFilters};
+use crate::filters::{Correlator, EyeFilters, FilterType};
 use crate::geometry::{Point, Rect, Shear};
 use crate::warp::{self, Canvas, Interpolation};
 
@@ -97,6 +97,13 @@ pub struct FaceReport {
     pub k_nose: Option<f64>,
     /// The mouth axis's own estimate (shear-and-roll model), if usable.
     pub k_mouth: Option<f64>,
+    /// The lower nose as the nose filter found it (the point that sets the view the other
+    /// features are searched in).
+    pub nose_tip: Option<Point>,
+    /// The nose-tip axis's own estimate (shear-and-roll model), if usable.
+    pub k_nose_tip: Option<f64>,
+    /// The nose filter's peak-to-sidelobe ratio (0 when it did not run).
+    pub nose_tip_psr: f64,
     /// The head's roll under that shear, degrees (positive: the subject's left eye, on the image
     /// right, lower); 0 with [`ShearModel::Equation5`].
     pub roll_degrees: f64,
@@ -531,7 +538,14 @@ impl Unshear {
             let mut points = locator.locate_from(&face, start_k);
             for _ in 0..self.refinements {
                 match estimate_face(&geometry(&points), self.model) {
-                    Some(e) => points = locator.locate(&face, Some(e.k)),
+                    Some(e) => {
+                        // The nose filter ran in the first pass only; its point stays.
+                        points = FacePoints {
+                            nose_tip: points.nose_tip,
+                            nose_tip_psr: points.nose_tip_psr,
+                            ..locator.locate(&face, Some(e.k))
+                        }
+                    }
                     None => break,
                 }
             }
@@ -546,7 +560,8 @@ impl Unshear {
             points.psr[3],
             points.mouth_psr,
         ];
-        let confidence = confidence(&points, &estimate, face_box);
+        let model = ConfidenceModel::for_filters(self.filters.kind);
+        let confidence = confidence(&points, &estimate, face_box, &model);
         Some(FaceReport {
             face_box,
             right_eye: points.right_eye,
@@ -558,6 +573,9 @@ impl Unshear {
             k_measured: estimate.k,
             k_nose: estimate.k_nose,
             k_mouth: estimate.k_mouth,
+            nose_tip: points.nose_tip,
+            k_nose_tip: estimate.k_nose_tip,
+            nose_tip_psr: points.nose_tip_psr,
             roll_degrees: estimate.roll.to_degrees(),
             confidence,
             psr,
@@ -625,17 +643,47 @@ fn geometry(p: &FacePoints) -> FeatureGeometry {
         left_pair: (p.left_eye_point, p.left_nose_point),
         nose: p.right_nostril.midpoint(p.left_nostril),
         mouth: p.mouth,
+        nose_tip: p.nose_tip,
     }
 }
 
-/// Default for [`Unshear::set_min_confidence`]: refuses the least trustworthy quarter of the
+/// Default for [`Unshear::set_min_confidence`]: refuses about the least trustworthy fifth of the
 /// estimates on web photos (see [`confidence`] for what the threshold buys).
 pub const DEFAULT_MIN_CONFIDENCE: f64 = 0.25;
 
-/// Weights of the confidence model (see [`confidence`]), in the order of its features, and the
-/// intercept.
-const CONFIDENCE_WEIGHTS: [f64; 6] = [0.561, 0.389, 1.717, -0.425, -0.574, -0.674];
-const CONFIDENCE_INTERCEPT: f64 = -2.630;
+/// A logistic confidence model: weights of [`confidence`]'s features, in their order, and the
+/// intercept. Printed by `scripts/fit_confidence.py`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ConfidenceModel {
+    /// One weight per feature.
+    pub weights: [f64; 7],
+    /// The intercept.
+    pub intercept: f64,
+}
+
+impl ConfidenceModel {
+    /// The model fitted for filters of type `kind`: the peak-to-sidelobe ratios of the three
+    /// filter types live on different scales, so each has its own fit (see [`confidence`]).
+    pub fn for_filters(kind: FilterType) -> Self {
+        match kind {
+            // Fitted on 823 estimates; on the other 628 faces' 1744: AUC 0.828.
+            FilterType::Umace => Self {
+                weights: [0.392, 0.487, 2.758, 0.334, -4.605, -0.620, -0.715],
+                intercept: -3.412,
+            },
+            // Fitted on 843 estimates; on the other faces' 1749: AUC 0.812.
+            FilterType::Asef => Self {
+                weights: [1.613, 0.149, 2.035, 1.011, -7.659, -0.899, -0.043],
+                intercept: -3.736,
+            },
+            // Fitted on 841 estimates; on the other faces' 1751: AUC 0.826.
+            FilterType::Mosse => Self {
+                weights: [1.361, 0.238, 2.209, 0.882, -6.911, -1.065, -0.267],
+                intercept: -3.646,
+            },
+        }
+    }
+}
 
 /// A face's confidence, 0 to 1: a logistic model of the chance that its estimate is within 0.10
 /// of the true shear, from how clearly each feature stood out and whether the face's geometry is
@@ -644,22 +692,31 @@ const CONFIDENCE_INTERCEPT: f64 = -2.630;
 /// 1. `ln` of the weaker eye peak's peak-to-sidelobe ratio (PSRs below 0.1 count as 0.1);
 /// 2. `ln` of the weaker nostril peak's PSR;
 /// 3. `ln` of the mouth peak's PSR (0.1 without a mouth filter);
-/// 4. how far the nose's and the mouth's own estimates disagree, `|k_nose - k_mouth|` (0.5 when
-///    either is missing);
-/// 5. the roll, `|degrees| / 10` (frontal faces in photos rarely roll much);
-/// 6. how far the located eye distance over the box width is from the detector's 0.381, times 10.
+/// 4. `ln` of the nose filter's PSR (0.1 when it did not run);
+/// 5. how far the nose tip's and the mouth's own estimates disagree, `|k_nose_tip - k_mouth|`
+///    (0.5 when either is missing);
+/// 6. the roll, `|degrees| / 10` (frontal faces in photos rarely roll much);
+/// 7. how far the located eye distance over the box width is from the detector's 0.381, times 10.
 ///
-/// Fitted by logistic regression on 797 estimates (the first 300 Caltech development faces with
-/// eyes at least 40 px apart, at k = 0 and +-0.40, the default pipeline at the time); with
-/// two-fold cross-validation by image the model ranks good above bad estimates with an AUC of
-/// 0.79-0.82. The mouth's PSR is the strongest single sign (AUC 0.80 alone), the eyes' next
-/// (0.70). On those estimates, a threshold of 0.3 kept 74% of them with 57% within 0.10 of the
-/// truth (all: 46%), 0.5 kept 45% with 71%, and 0.6 kept 31% with 85%.
-pub fn confidence(points: &FacePoints, estimate: &FaceEstimate, face_box: Rect) -> f64 {
+/// Each filter type's model ([`ConfidenceModel::for_filters`]) was fitted by logistic regression
+/// (`scripts/fit_confidence.py`) on the estimates of the first 300 Caltech development faces
+/// with eyes at least 40 px apart, at k = 0 and +-0.40, with the default pipeline and those
+/// filters, and checked on the estimates of the other 628 faces, which were not used to fit it.
+/// The mouth's PSR and the nose/mouth disagreement weigh most. With MOSSE filters (the default),
+/// on those 1751 estimates, the default threshold of 0.25 keeps 81% of them with 69% within 0.10
+/// (all: 60%); 0.3 keeps 77% with 71%, 0.5 keeps 60% with 80%. With UMACE, 0.25 keeps 78% of
+/// 1744 with 65.5% within 0.10 (all: 54.5%). (A refused face is retried in de-sheared views, so
+/// in the whole pipeline fewer faces end up refused than these shares suggest.)
+pub fn confidence(
+    points: &FacePoints,
+    estimate: &FaceEstimate,
+    face_box: Rect,
+    model: &ConfidenceModel,
+) -> f64 {
     let ln = |v: f64| v.max(0.1).ln();
     let eyes = points.psr[0].min(points.psr[1]);
     let nostrils = points.psr[2].min(points.psr[3]);
-    let disagreement = match (estimate.k_nose, estimate.k_mouth) {
+    let disagreement = match (estimate.k_nose_tip, estimate.k_mouth) {
         (Some(n), Some(m)) => (n - m).abs(),
         _ => 0.5,
     };
@@ -668,14 +725,15 @@ pub fn confidence(points: &FacePoints, estimate: &FaceEstimate, face_box: Rect) 
         ln(eyes),
         ln(nostrils),
         ln(points.mouth_psr),
+        ln(points.nose_tip_psr),
         disagreement,
         estimate.roll.to_degrees().abs() / 10.0,
         (ratio - EYE_DISTANCE_PER_BOX_WIDTH).abs() * 10.0,
     ];
-    let z = CONFIDENCE_INTERCEPT
+    let z = model.intercept
         + features
             .iter()
-            .zip(CONFIDENCE_WEIGHTS)
+            .zip(model.weights)
             .map(|(x, w)| x * w)
             .sum::<f64>();
     let c = 1.0 / (1.0 + (-z).exp());
@@ -747,9 +805,59 @@ mod tests {
             k_measured: k.unwrap_or(0.9),
             k_nose: None,
             k_mouth: None,
+            nose_tip: None,
+            k_nose_tip: None,
+            nose_tip_psr: 0.0,
             roll_degrees: 0.0,
             confidence,
             psr: [0.0; 5],
+        }
+    }
+
+    #[test]
+    fn confidence_rises_with_clear_peaks_and_falls_with_disagreement_for_every_filter_type() {
+        let p = |x: f64, y: f64| Point::new(x, y);
+        let points = |mouth_psr: f64| FacePoints {
+            right_eye: p(81.0, 100.0),
+            left_eye: p(138.0, 100.0),
+            right_nostril: p(100.0, 140.0),
+            left_nostril: p(119.0, 140.0),
+            right_eye_point: p(94.0, 100.0),
+            left_eye_point: p(125.0, 100.0),
+            right_nose_point: p(94.0, 140.0),
+            left_nose_point: p(125.0, 140.0),
+            psr: [8.0, 8.0, 4.0, 4.0],
+            mouth: Some(p(110.0, 163.0)),
+            mouth_psr,
+            nose_tip: Some(p(110.0, 143.0)),
+            nose_tip_psr: 5.0,
+            view_k: 0.0,
+        };
+        let estimate = |disagreement: f64| FaceEstimate {
+            k: 0.0,
+            roll: 0.0,
+            k_nose: Some(0.0),
+            k_mouth: Some(0.0),
+            k_nose_tip: Some(disagreement),
+        };
+        // A box the detector would draw for eyes 57 px apart.
+        let face_box = Rect::new(60.0, 60.0, 57.0 / EYE_DISTANCE_PER_BOX_WIDTH, 150.0);
+        for kind in FilterType::ALL {
+            let model = ConfidenceModel::for_filters(kind);
+            let c = |mouth_psr, disagreement| {
+                confidence(
+                    &points(mouth_psr),
+                    &estimate(disagreement),
+                    face_box,
+                    &model,
+                )
+            };
+            let (clear, faint, split) = (c(6.0, 0.0), c(2.0, 0.0), c(6.0, 0.3));
+            for v in [clear, faint, split] {
+                assert!(v > 0.0 && v < 1.0, "{kind:?}: {v}");
+            }
+            assert!(clear > faint, "{kind:?}: mouth PSR {clear} vs {faint}");
+            assert!(clear > split, "{kind:?}: disagreement {clear} vs {split}");
         }
     }
 

