@@ -1,9 +1,10 @@
 //! # unshear
 //!
 //! Remove rolling-shutter skew from photos and video frames of people, using the face itself as
-//! the ruler (Viola-Jones face detection, UMACE correlation filters for eyes and nostrils, the shear
-//! estimate of equation 5 and the row-shift correction of equation 6 of the paper in
-//! `../shared/paper/`).
+//! the ruler (Viola-Jones face detection, correlation filters for eyes, nostrils, nose and mouth
+//! (MOSSE by default, the paper's UMACE on request), the shear estimate of equation 5 or the
+//! shear-roll-yaw model that extends it, and the row-shift correction of equation 6 of the paper
+//! in `../shared/paper/`).
 //!
 //! Data flows one way through the modules:
 //!
@@ -15,8 +16,9 @@
 //! * [`detect`]: OpenCV-compatible Viola-Jones face detection on Haar cascades.
 //! * [`filters`]: correlation filters (UMACE, ASEF, MOSSE): synthesis, file format, frequency-domain
 //!   correlation.
-//! * [`features`]: eyes and nostrils located in the 150-px face with the filters.
-//! * [`estimate`]: the shear `k` from the feature points (equation 5).
+//! * [`features`]: eyes, nostrils, nose and mouth located in the 150-px face with the filters.
+//! * [`estimate`]: the shear `k` from the feature points (equation 5, or shear with roll and
+//!   yaw).
 //! * [`warp`]: sub-pixel row shifts that apply or undo a shear (equation 6).
 //! * [`pipeline`]: all of the above behind one [`Unshear`] value.
 //! * [`train`]: building the eye filters from an annotated data set.

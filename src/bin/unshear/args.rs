@@ -40,7 +40,7 @@ pub struct ModelArgs {
     /// Filter file made by `unshear train` (its own type is used) [default: built-in].
     #[arg(long, value_name = "PATH")]
     pub filters: Option<PathBuf>,
-    /// Which built-in filter set to use [default: the built-in default type].
+    /// Which built-in filter set to use [default: mosse, the built-in default type].
     #[arg(long, value_enum, value_name = "TYPE", conflicts_with = "filters")]
     pub filter_type: Option<FilterTypeArg>,
     /// Refuse images with more pixels than this (checked before decoding).
@@ -212,7 +212,7 @@ pub struct TrainArgs {
     /// them, as the built-in filters were trained).
     #[arg(long)]
     pub no_mirror: bool,
-    /// Which filters to synthesise [default: the built-in default type].
+    /// Which filters to synthesise [default: mosse, the built-in default type].
     #[arg(long, value_enum, value_name = "TYPE")]
     pub filter_type: Option<FilterTypeArg>,
     /// Output filter file.
@@ -391,5 +391,20 @@ impl From<InterpArg> for unshear::warp::Interpolation {
             InterpArg::Linear => Self::Linear,
             InterpArg::Cubic => Self::Cubic,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The `--filter-type` help names the default type; it must be the library's.
+    #[test]
+    fn filter_type_help_names_the_library_default() {
+        let named = FilterTypeArg::Mosse;
+        assert_eq!(
+            unshear::filters::FilterType::from(named),
+            unshear::filters::FilterType::DEFAULT
+        );
     }
 }
