@@ -7,11 +7,16 @@ It prints the weights and intercept in Rust syntax, the two-fold cross-validated
 image, so that a face's shears never sit on both sides) and what several thresholds keep.
 
 Usage (the figures in the README and in `pipeline.rs`):
-    cargo run --release -- eval shear --limit 300 --k=0,0.4,-0.4 --out target/conf-fit
-    python3 scripts/fit_confidence.py target/conf-fit [--check OTHER_RUN]
+    cargo run --release -- eval shear --limit 300 --k=0,0.4,-0.4 --out target/fit300
+    cargo run --release -- eval shear --k=0,0.4,-0.4 --out target/all
+    python3 scripts/fit_confidence.py target/fit300 --check target/all      # UMACE's model
+    python3 scripts/fit_confidence.py target/all --fit-first 300            # MOSSE's, ASEF's
 
-`--check` scores another run (for example the faces after the first 300) with the weights fitted
-on the first, without refitting. Needs only numpy.
+`--check OTHER_RUN` fits on the first run and scores the faces of OTHER_RUN that are not in it
+(`--limit 300` takes the first 300 faces of the ground-truth file). `--fit-first N` splits one
+run instead: it fits on the first N faces in the run's own order (images sorted by path, which
+is not the ground-truth file's order) and scores the others. Add `--filter-type T` to both
+`eval` commands for type T. Needs only numpy.
 """
 import json
 import math
@@ -57,9 +62,16 @@ FEATURES = [
 ]
 
 
-def load(run):
+def load_samples(run):
     with open(run + "/samples.json") as f:
-        samples = json.load(f)
+        return json.load(f)
+
+
+def face_key(s):
+    return (s["image"], s["face"])
+
+
+def arrays(samples):
     rows = [s for s in samples if s["measured"] is not None]
     x = np.array([features(s) for s in rows])
     y = np.array([abs(s["measured"] - s["true_k"]) <= GOOD for s in rows], dtype=float)
@@ -115,10 +127,20 @@ def report(name, x, y, weights, intercept):
 
 def main():
     args = sys.argv[1:]
-    if not args or args[0] in ("-h", "--help"):
+    if not args or args[0] in ("-h", "--help") or len(args) not in (1, 3):
         print(__doc__)
         return
-    x, y, images = load(args[0])
+    fit_samples = load_samples(args[0])
+    check = None
+    if len(args) == 3 and args[1] == "--check":
+        fitted = {face_key(s) for s in fit_samples}
+        check = [s for s in load_samples(args[2]) if face_key(s) not in fitted]
+    elif len(args) == 3 and args[1] == "--fit-first":
+        order = list(dict.fromkeys(face_key(s) for s in fit_samples))
+        first = set(order[: int(args[2])])
+        check = [s for s in fit_samples if face_key(s) not in first]
+        fit_samples = [s for s in fit_samples if face_key(s) in first]
+    x, y, images = arrays(fit_samples)
     # Two folds by image.
     names = sorted(set(images))
     fold = {n: i % 2 for i, n in enumerate(names)}
@@ -129,12 +151,15 @@ def main():
     weights, intercept = fit(x, y)
     for name, w in zip(FEATURES, weights):
         print(f"  {w:+.3f}  {name}")
-    print("const CONFIDENCE_WEIGHTS: [f64; %d] = [%s];" % (len(weights), ", ".join(f"{w:.3f}" for w in weights)))
-    print(f"const CONFIDENCE_INTERCEPT: f64 = {intercept:.3f};")
-    report(args[0], x, y, weights, intercept)
-    if len(args) >= 3 and args[1] == "--check":
-        xc, yc, _ = load(args[2])
-        report(args[2], xc, yc, weights, intercept)
+    print(
+        "ConfidenceModel { weights: [%s], intercept: %.3f }"
+        % (", ".join(f"{w:.3f}" for w in weights), intercept)
+    )
+    report("fitted", x, y, weights, intercept)
+    if check is not None:
+        faces = len({face_key(s) for s in check})
+        xc, yc, _ = arrays(check)
+        report(f"checked ({faces} other faces)", xc, yc, weights, intercept)
 
 
 if __name__ == "__main__":

@@ -85,9 +85,10 @@ pub const MAX_ROLL: f64 = 0.6;
 /// points every error of the nose point is amplified by the same factor, so the best value is
 /// smaller. 0.3 was chosen on the located points of the first 300 Caltech development faces
 /// (eyes at least 40 px apart, k = 0 and +-0.40; 0.2-0.4 are within a point of each other) and
-/// confirmed on the other 628: within 0.05 of the truth for 34.2/37.4/32.6% of those faces at
-/// k = -0.4/0/+0.4, against 29.9/34.6/28.8% with the nostrils' axis and 0.5 (the previous
-/// model), and 32.3% (all shears) with the mouth alone.
+/// checked on the other 628 (`scripts/yaw_factor.py`): within 0.05 of the truth for
+/// 33.1/36.3/30.7% of those faces at k = -0.4/0/+0.4, against 28.3/35.0/27.1% with the
+/// nostrils' axis and 0.5 (the previous model) and 29.6/36.1/30.1% with the mouth alone; median
+/// error 0.086 against 0.095. On those faces 0.2-0.4 are again within a point of each other.
 pub const YAW_EXTRAPOLATION: f64 = 0.3;
 
 /// [`YAW_EXTRAPOLATION`] for the nostrils' axis, used when the nose filter's point is missing

@@ -65,11 +65,11 @@ pub const MOUTH_BELOW_EYES: f64 = 1.10;
 /// nose's estimate and the mouth's own spread (std 0.08), vertically its spread (std 0.15;
 /// 5th-95th percentile 0.90-1.32).
 ///
-/// Narrower windows were measured since (MOSSE filters, k = 0 and +-0.40): 0.18 sideways put
-/// 0.2-1.1 points more of the 628 faces after the first 300 within 0.05 and accepted 18 fewer
-/// wrong estimates (457 against 475), with 57 of 75 Yale images within 0.05; 0.12 did a little
-/// better on web faces but measured a test fixture 0.09 off at k = -0.4. Not adopted yet: the
-/// change is small, and every default figure in the README would have to be re-measured with it.
+/// Narrower windows were measured since (MOSSE filters, k = 0 and +-0.40, chosen among 0.12 /
+/// 0.18 / 0.35 on the first 300 development faces): on the other 628, 0.18 sideways put 0 to 0.9
+/// points more of them within 0.05 and accepted 10 fewer wrong estimates (459 against 469), with
+/// 57 of 75 Yale images within 0.05; 0.12 did about as well on web faces but measured a test
+/// fixture 0.09 off at k = -0.4. Not adopted: the gain is within noise.
 pub const MOUTH_SEARCH: (f64, f64) = (0.25, 0.25);
 
 /// Sideways half-range (eye distances) of the nose search after the first pass, when the view

@@ -666,17 +666,19 @@ impl ConfidenceModel {
     /// filter types live on different scales, so each has its own fit (see [`confidence`]).
     pub fn for_filters(kind: FilterType) -> Self {
         match kind {
-            // Fitted on 823 estimates; on the other 628 faces' 1744: AUC 0.828.
+            // Fitted on the 823 estimates of the first 300 faces (`eval shear --limit 300`); on
+            // the other 628 faces' 1757: AUC 0.827.
             FilterType::Umace => Self {
                 weights: [0.392, 0.487, 2.758, 0.334, -4.605, -0.620, -0.715],
                 intercept: -3.412,
             },
-            // Fitted on 843 estimates; on the other faces' 1749: AUC 0.812.
+            // Fitted on the 843 estimates of the first 300 faces in image-path order
+            // (`fit_confidence.py --fit-first 300`); on the other 628 faces' 1749: AUC 0.812.
             FilterType::Asef => Self {
                 weights: [1.613, 0.149, 2.035, 1.011, -7.659, -0.899, -0.043],
                 intercept: -3.736,
             },
-            // Fitted on 841 estimates; on the other faces' 1751: AUC 0.826.
+            // Fitted like ASEF's on 841 estimates; on the other 628 faces' 1751: AUC 0.826.
             FilterType::Mosse => Self {
                 weights: [1.361, 0.238, 2.209, 0.882, -6.911, -1.065, -0.267],
                 intercept: -3.646,
@@ -699,14 +701,16 @@ impl ConfidenceModel {
 /// 7. how far the located eye distance over the box width is from the detector's 0.381, times 10.
 ///
 /// Each filter type's model ([`ConfidenceModel::for_filters`]) was fitted by logistic regression
-/// (`scripts/fit_confidence.py`) on the estimates of the first 300 Caltech development faces
-/// with eyes at least 40 px apart, at k = 0 and +-0.40, with the default pipeline and those
-/// filters, and checked on the estimates of the other 628 faces, which were not used to fit it.
-/// The mouth's PSR and the nose/mouth disagreement weigh most. With MOSSE filters (the default),
-/// on those 1751 estimates, the default threshold of 0.25 keeps 81% of them with 69% within 0.10
-/// (all: 60%); 0.3 keeps 77% with 71%, 0.5 keeps 60% with 80%. With UMACE, 0.25 keeps 78% of
-/// 1744 with 65.5% within 0.10 (all: 54.5%). (A refused face is retried in de-sheared views, so
-/// in the whole pipeline fewer faces end up refused than these shares suggest.)
+/// (`scripts/fit_confidence.py`, which documents the commands) on the estimates of 300 of the 928
+/// Caltech development faces with eyes at least 40 px apart, at k = 0 and +-0.40, with the
+/// default pipeline and those filters, and checked on the estimates of the other 628 faces,
+/// which were not used to fit it. (UMACE's 300 are the first of the ground-truth file, MOSSE's
+/// and ASEF's the first by image path: two different sets.) The mouth's PSR and the nose/mouth
+/// disagreement weigh most. With MOSSE filters (the default), on its 1751 check estimates, the
+/// default threshold of 0.25 keeps 81% of them with 69% within 0.10 (all: 60%); 0.3 keeps 77%
+/// with 71%, 0.5 keeps 60% with 80%. With UMACE, 0.25 keeps 78% of 1757 with 65% within 0.10
+/// (all: 54%). (A refused face is retried in de-sheared views, so in the whole pipeline fewer
+/// faces end up refused than these shares suggest.)
 pub fn confidence(
     points: &FacePoints,
     estimate: &FaceEstimate,
