@@ -1,5 +1,6 @@
-//! Pipeline benchmarks: the estimate for one face once it is detected (target <= 1 ms), and
-//! face detection on a 1920x1080 frame. Correction speed is in `benches/warp.rs`.
+//! Pipeline benchmarks: the estimate for one face once it is detected (target <= 1 ms; a tilted
+//! head, searched again upright, separately), face detection on a 1920x1080 frame, and the whole
+//! estimate of a frame with one face and with none. Correction speed is in `benches/warp.rs`.
 //!
 //! Run: `cargo bench --bench pipeline`.
 
@@ -39,6 +40,18 @@ fn bench(c: &mut Criterion) {
     c.bench_function("estimate one face (after detection)", |b| {
         b.iter(|| unshear.estimate_face(&gray, face))
     });
+    // A head tilted by 22 degrees: its features are searched again in the face turned upright.
+    let tilted = match unshear::warp::rotate::rotate_gray(&gray, 22f64.to_radians()) {
+        Ok((t, _)) => t,
+        Err(e) => panic!("rotate: {e}"),
+    };
+    let Some(&tilted_face) = unshear.detect(&tilted).first() else {
+        panic!("the tilted fixture must be found");
+    };
+    c.bench_function(
+        "estimate one face tilted 22 degrees (after detection)",
+        |b| b.iter(|| unshear.estimate_detection(&tilted, &tilted_face)),
+    );
 
     // A 1920x1080 frame: the fixture enlarged to full height, on a mid-grey canvas.
     let big = img.resize(1920, 1080, FilterType::Triangle).to_luma8();
@@ -71,6 +84,17 @@ fn bench(c: &mut Criterion) {
     let mut group = c.benchmark_group("estimate whole 1920x1080 frame");
     group.sample_size(10);
     group.bench_function("all threads", |b| b.iter(|| unshear.estimate_gray(&frame)));
+    // No face: every de-sheared and turned view is searched (15 detections in all).
+    let mut state = 0x2545_f491_u32;
+    let noise = image::GrayImage::from_fn(1920, 1080, |_, _| {
+        state ^= state << 13;
+        state ^= state >> 17;
+        state ^= state << 5;
+        image::Luma([(state >> 24) as u8])
+    });
+    group.bench_function("no face, all threads", |b| {
+        b.iter(|| unshear.estimate_gray(&noise))
+    });
     group.finish();
 }
 

@@ -25,6 +25,8 @@
 //! Every [`DynamicImage`] variant is supported and the output keeps the input's variant (a variant
 //! added to `image` in the future is processed as `Rgba32F`).
 
+pub mod rotate;
+
 use crate::{Error, Point, Rect, Result, Shear};
 use image::{DynamicImage, ImageBuffer, Pixel};
 use rayon::prelude::*;

@@ -159,6 +159,7 @@ fn points_are_in_image_pixels_with_the_subjects_sides() {
 fn de_sheared_detection_finds_faces_the_single_pass_misses() {
     let mut single_pass = Unshear::with_defaults().expect("built-in models");
     single_pass.set_shear_hypotheses(&[]);
+    single_pass.set_roll_hypotheses(&[]);
     let default = Unshear::with_defaults().expect("built-in models");
     let cases = [
         ("subject01.normal.jpeg", 0.7),
@@ -217,4 +218,39 @@ fn fallback_cascade_finds_what_the_main_detector_misses() {
         let k = report.k.expect("an estimate");
         assert!((k - 0.2).abs() <= 0.05, "{}: {k}", path.display());
     }
+}
+
+/// A head rolled by 22 degrees: the features are searched again in the face turned upright by
+/// the roll measured, so the estimate stays within 0.05 of the upright face's and the roll is
+/// measured within 3 degrees. Before this second search, 5 of these 6 cases were 0.06-0.19 off
+/// (the eye and nose filters were trained on upright faces), so the test can fail. One case
+/// (subject14 tilted clockwise) is still wrong; it is refused or not, but it is not asserted.
+#[test]
+fn rolled_faces_are_measured_upright() {
+    use unshear::warp::rotate::rotate_gray;
+    let unshear = Unshear::with_defaults().expect("built-in models");
+    let mut good = 0;
+    for path in fixtures() {
+        let gray = Unshear::gray(&load(&path));
+        let base = unshear.estimate_gray(&gray).k.expect("upright estimate");
+        for degrees in [-22.0f64, 22.0] {
+            // Turning the image by `a` (clockwise for a > 0) tilts the head by the same angle;
+            // the reported roll is positive when the subject's left eye (image right) is lower,
+            // i.e. for a clockwise tilt.
+            let (turned, _) = rotate_gray(&gray, degrees.to_radians()).expect("rotate");
+            let report = unshear.estimate_gray(&turned);
+            assert_eq!(report.faces.len(), 1, "{}: {degrees}", path.display());
+            let face = &report.faces[0];
+            if (face.k_measured - base).abs() <= 0.05 {
+                assert!(
+                    (face.roll_degrees - degrees).abs() <= 3.0,
+                    "{}: tilted {degrees}, roll {:.1}",
+                    path.display(),
+                    face.roll_degrees
+                );
+                good += 1;
+            }
+        }
+    }
+    assert!(good >= 5, "{good} of 6 rolled faces within 0.05");
 }

@@ -59,8 +59,8 @@ pub struct ModelArgs {
     /// confidence (0 to 1).
     #[arg(long, value_name = "C", default_value_t = unshear::pipeline::DEFAULT_MIN_CONFIDENCE)]
     pub min_confidence: f64,
-    /// Detect in the image as it is only (the paper's single pass): no de-sheared retries when
-    /// no face is found.
+    /// Detect in the image as it is only (the paper's single pass): no de-sheared or turned
+    /// retries when no face is found.
     #[arg(long)]
     pub no_shear_search: bool,
     /// Shears whose de-sheared views are searched when the image as it is gives no face with an
@@ -73,6 +73,20 @@ pub struct ModelArgs {
         conflicts_with = "no_shear_search"
     )]
     pub shear_hypotheses: Option<Vec<f64>>,
+    /// Head rolls (degrees, positive: the head tilted clockwise on screen) whose turned views
+    /// are searched after the de-sheared ones when still no face has an accepted estimate,
+    /// comma-separated [default: 20,-20].
+    #[arg(
+        long,
+        value_name = "DEG,...",
+        value_delimiter = ',',
+        allow_negative_numbers = true,
+        conflicts_with_all = ["no_shear_search", "no_roll_search"]
+    )]
+    pub roll_hypotheses: Option<Vec<f64>>,
+    /// No turned views for rolled heads (the de-sheared views are still searched).
+    #[arg(long)]
+    pub no_roll_search: bool,
     /// Also ask the built-in second cascade (OpenCV's frontalface_default) when the main one
     /// finds no face with an accepted estimate: more faces found, but the extra ones are hard
     /// and their estimates often wrong (see the README's *Accuracy*). Not with --cascade or

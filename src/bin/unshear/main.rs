@@ -106,8 +106,18 @@ fn load_models(m: &ModelArgs) -> Result<Unshear> {
         }
         unshear.set_shear_hypotheses(hypotheses);
     }
+    if let Some(rolls) = &m.roll_hypotheses {
+        if rolls.iter().any(|r| !r.is_finite() || r.abs() >= 90.0) {
+            usage_error("--roll-hypotheses must be degrees between -90 and 90");
+        }
+        unshear.set_roll_hypotheses(rolls);
+    }
+    if m.no_roll_search {
+        unshear.set_roll_hypotheses(&[]);
+    }
     if m.no_shear_search {
         unshear.set_shear_hypotheses(&[]);
+        unshear.set_roll_hypotheses(&[]);
     } else if m.fallback_cascade {
         unshear.set_fallback_detector(Some(FallbackDetector::frontal_face_default(
             *unshear.detector().params(),
