@@ -74,8 +74,8 @@ pub struct ModelArgs {
     )]
     pub shear_hypotheses: Option<Vec<f64>>,
     /// Head rolls (degrees, positive: the head tilted clockwise on screen) whose turned views
-    /// are searched after the de-sheared ones when still no face has an accepted estimate,
-    /// comma-separated [default: 20,-20].
+    /// are searched after the de-sheared ones when no view found any face, comma-separated
+    /// [default: 12,-12].
     #[arg(
         long,
         value_name = "DEG,...",
@@ -420,5 +420,30 @@ mod tests {
             unshear::filters::FilterType::from(named),
             unshear::filters::FilterType::DEFAULT
         );
+    }
+
+    /// The hypotheses' help names the library's defaults (the help text is static, so it must
+    /// be kept in step by hand).
+    #[test]
+    fn hypotheses_help_names_the_library_defaults() {
+        use clap::CommandFactory;
+        let help = Cli::command()
+            .find_subcommand_mut("estimate")
+            .expect("the estimate subcommand")
+            .render_long_help()
+            .to_string()
+            .split_whitespace()
+            .collect::<Vec<_>>()
+            .join(" ");
+        let listed = |values: &[f64]| {
+            let shown: Vec<String> = values.iter().map(|v| v.to_string()).collect();
+            format!("[default: {}]", shown.join(","))
+        };
+        for expected in [
+            listed(&unshear::pipeline::DEFAULT_SHEAR_HYPOTHESES),
+            listed(&unshear::pipeline::DEFAULT_ROLL_HYPOTHESES),
+        ] {
+            assert!(help.contains(&expected), "{expected} not in: {help}");
+        }
     }
 }
