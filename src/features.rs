@@ -33,6 +33,9 @@ pub const FACE_WIDTH: f64 = 150.0;
 /// Where the subject's right eye sits in a detector box, as fractions of the box width/height.
 /// Median over 2532 Caltech development faces (eye distance >= 20 px) matched to OpenCV
 /// `haarcascade_frontalface_alt2` detections (scale 1.1, 3 neighbours); spread (std) 0.025 / 0.031.
+/// Measured when the annotations were still read as 0-based (see
+/// [`crate::dataset::CALTECH_PIXEL_ORIGIN`]): a pixel, about 0.01 box widths, right of and below
+/// where 0-based annotations would put them, well inside the eye search window; not re-measured.
 pub const RIGHT_EYE_IN_BOX: (f64, f64) = (0.3184, 0.397);
 /// Where the subject's left eye sits in a detector box (same measurement; std 0.028 / 0.035).
 pub const LEFT_EYE_IN_BOX: (f64, f64) = (0.698, 0.394);
