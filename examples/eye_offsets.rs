@@ -19,11 +19,7 @@ use anyhow::{Context, Result};
 use unshear::dataset::{CaltechWebFaces, FaceDataset};
 use unshear::features::{face_box_from_eyes, FeatureLocator, NormalizedFace};
 use unshear::filters::EyeFilters;
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
-}
+use unshear::pipeline::median;
 
 fn main() -> Result<()> {
     let args: Vec<String> = std::env::args().collect();
@@ -66,7 +62,7 @@ fn main() -> Result<()> {
             (found.left_eye.y - f.left_eye.y) / d,
         ]);
     }
-    let column = |i: usize| median(offsets.iter().map(|o| o[i]).collect());
+    let column = |i: usize| median(offsets.iter().map(|o| o[i]).collect()).unwrap_or(f64::NAN);
     println!(
         "{} faces; median offset, right eye ({:+.4}, {:+.4}), left eye ({:+.4}, {:+.4})",
         offsets.len(),

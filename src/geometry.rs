@@ -61,6 +61,13 @@ impl Rect {
         Point::new(self.x + self.width / 2.0, self.y + self.height / 2.0)
     }
 
+    /// The box scaled by `factor` about its centre (`factor > 1` grows it).
+    pub fn scaled_about_center(&self, factor: f64) -> Rect {
+        let (w, h) = (self.width * factor, self.height * factor);
+        let c = self.center();
+        Rect::new(c.x - w / 2.0, c.y - h / 2.0, w, h)
+    }
+
     /// Area (zero for an empty box).
     pub fn area(&self) -> f64 {
         self.width.max(0.0) * self.height.max(0.0)
@@ -146,6 +153,17 @@ mod tests {
         let p = Point::new(12.25, 400.5);
         let q = s.invert(s.apply(p));
         assert!((q.x - p.x).abs() < 1e-12 && q.y == p.y);
+    }
+
+    #[test]
+    fn scaling_about_the_center_keeps_the_center() {
+        let b = Rect::new(10.0, 20.0, 40.0, 60.0);
+        assert_eq!(b.scaled_about_center(1.5), Rect::new(0.0, 5.0, 60.0, 90.0));
+        assert_eq!(
+            b.scaled_about_center(0.5),
+            Rect::new(20.0, 35.0, 20.0, 30.0)
+        );
+        assert_eq!(b.scaled_about_center(1.0), b);
     }
 
     #[test]

@@ -731,12 +731,7 @@ impl Unshear {
         let ratio =
             best.right_eye.distance(best.left_eye) / face_box.width / EYE_DISTANCE_PER_BOX_WIDTH;
         if (ratio - 1.0).abs() >= RESCALE_EYE_RATIO && (0.5..2.0).contains(&ratio) {
-            let (w, h) = (face_box.width * ratio, face_box.height * ratio);
-            let (cx, cy) = (
-                face_box.x + face_box.width / 2.0,
-                face_box.y + face_box.height / 2.0,
-            );
-            let scaled = Rect::new(cx - w / 2.0, cy - h / 2.0, w, h);
+            let scaled = face_box.scaled_about_center(ratio);
             let next =
                 self.locate_and_estimate_in(gray, scaled, face_box, best.k_measured, best_roll);
             if let Some(next) = next.filter(|n| n.confidence > best.confidence) {
@@ -870,12 +865,7 @@ impl Unshear {
                         continue;
                     };
                     let b = face.face_box;
-                    let region = Rect::new(
-                        b.x - FACE_REGION_MARGIN * b.width,
-                        b.y - FACE_REGION_MARGIN * b.height,
-                        b.width * (1.0 + 2.0 * FACE_REGION_MARGIN),
-                        b.height * (1.0 + 2.0 * FACE_REGION_MARGIN),
-                    );
+                    let region = b.scaled_about_center(1.0 + 2.0 * FACE_REGION_MARGIN);
                     let shear = Shear::new(k, b.center().y);
                     out = warp::remove_shear_in_region(&out, shear, region, options.interpolation);
                 }

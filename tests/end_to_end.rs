@@ -270,10 +270,7 @@ fn a_face_boxed_at_the_wrong_scale_is_measured_at_its_eyes_scale() {
         let face = &detected.faces[0];
         let base = face.k_measured;
         for factor in [0.85, 1.15] {
-            let b = face.face_box;
-            let (w, h) = (b.width * factor, b.height * factor);
-            let scaled =
-                unshear::Rect::new(b.x + (b.width - w) / 2.0, b.y + (b.height - h) / 2.0, w, h);
+            let scaled = face.face_box.scaled_about_center(factor);
             let report = unshear.estimate_face(&gray, scaled).expect("an estimate");
             assert_eq!(report.face_box, scaled, "{}", path.display());
             assert!(
