@@ -26,6 +26,15 @@ pub struct Peak {
     pub psr: f64,
 }
 
+impl Peak {
+    /// Whether the peak lies inside a search window of half-size `(max_dx, max_dy)`, not on
+    /// its edge (where the highest value of the window may only be the flank of a higher peak
+    /// beyond it).
+    pub fn is_inside(&self, (max_dx, max_dy): (usize, usize)) -> bool {
+        self.dx.round().abs() < max_dx as f64 && self.dy.round().abs() < max_dy as f64
+    }
+}
+
 /// Correlates `size x size` patches with filters of the same size.
 ///
 /// Holds the forward and inverse FFT plans and the work buffers, so one `Correlator` per thread
@@ -144,6 +153,83 @@ impl Correlator {
         self.peak_at(best_dx, best_dy)
     }
 
+    /// Up to `count` candidate peaks of the last plane within `max_dx`, `max_dy` of the centre,
+    /// highest first, each refined as [`Self::peak_at`]: the window's highest value (always
+    /// first: [`Self::peak_in_window`]'s peak, even on the window's edge, where it is the flank
+    /// of a peak just beyond), then the local maxima (each the highest of its 5 x 5
+    /// neighbourhood).
+    pub fn local_maxima_in_window(&self, max_dx: usize, max_dy: usize, count: usize) -> Vec<Peak> {
+        let half = (self.size / 2) as isize;
+        let max_dx = (max_dx as isize).min(half - 1);
+        let max_dy = (max_dy as isize).min(half - 1);
+        let mut highest = (f32::NEG_INFINITY, 0isize, 0isize);
+        let mut maxima: Vec<(f32, isize, isize)> = Vec::new();
+        for dy in -max_dy..=max_dy {
+            for dx in -max_dx..=max_dx {
+                let v = self.value(dx, dy);
+                if v > highest.0 {
+                    highest = (v, dx, dy);
+                }
+                let local = (-2..=2).all(|ey| {
+                    (-2..=2).all(|ex| (ex, ey) == (0, 0) || self.value(dx + ex, dy + ey) <= v)
+                });
+                if local {
+                    maxima.push((v, dx, dy));
+                }
+            }
+        }
+        maxima.sort_by(|a, b| b.0.total_cmp(&a.0));
+        // The plane's sums once; each candidate's sidelobe then drops its own square.
+        let totals = self.plane.iter().fold((0f64, 0f64), |(s, q), &v| {
+            let v = f64::from(v);
+            (s + v, q + v * v)
+        });
+        std::iter::once(highest)
+            .chain(
+                maxima
+                    .into_iter()
+                    .filter(|&(_, dx, dy)| (dx, dy) != (highest.1, highest.2)),
+            )
+            .take(count)
+            .map(|(_, dx, dy)| {
+                let v = self.value(dx, dy);
+                Peak {
+                    dx: dx as f64
+                        + parabola_offset(self.value(dx - 1, dy), v, self.value(dx + 1, dy)),
+                    dy: dy as f64
+                        + parabola_offset(self.value(dx, dy - 1), v, self.value(dx, dy + 1)),
+                    value: v,
+                    psr: self.psr_from_totals(totals, v, dx, dy),
+                }
+            })
+            .collect()
+    }
+
+    /// [`Self::psr`] from the whole plane's sum and sum of squares, less the exclusion square
+    /// around the peak: the same ratio (to rounding) in 121 steps instead of the plane's 4096.
+    fn psr_from_totals(&self, (sum, sum_sq): (f64, f64), peak: f32, pdx: isize, pdy: isize) -> f64 {
+        let n = self.size as isize;
+        if 2 * PSR_EXCLUSION + 1 >= n {
+            return self.psr(peak, pdx, pdy);
+        }
+        let (mut near_sum, mut near_sq) = (0f64, 0f64);
+        for ey in -PSR_EXCLUSION..=PSR_EXCLUSION {
+            for ex in -PSR_EXCLUSION..=PSR_EXCLUSION {
+                let v = f64::from(self.value(pdx + ex, pdy + ey));
+                near_sum += v;
+                near_sq += v * v;
+            }
+        }
+        let side = (2 * PSR_EXCLUSION + 1) as usize;
+        let count = (n * n) as usize - side * side;
+        let mean = (sum - near_sum) / count as f64;
+        let var = ((sum_sq - near_sq) / count as f64 - mean * mean).max(0.0);
+        if var <= f64::EPSILON {
+            return 0.0;
+        }
+        (f64::from(peak) - mean) / var.sqrt()
+    }
+
     /// The last plane's peak at integer displacement `(dx, dy)`, refined to sub-pixel precision
     /// by a parabola through the neighbours, with its peak-to-sidelobe ratio.
     pub fn peak_at(&self, dx: isize, dy: isize) -> Peak {
@@ -254,6 +340,15 @@ mod tests {
         v
     }
 
+    /// The matched filter of a blob of width `sigma` at the centre of an `n x n` patch.
+    fn centred_blob_filter(c: &mut Correlator, n: usize, sigma: f64) -> Filter {
+        Filter {
+            size: n,
+            spectrum: c.spectrum(&blob(n, n as f64 / 2.0, n as f64 / 2.0, sigma)),
+            training_count: 1,
+        }
+    }
+
     #[test]
     fn spectrum_round_trips() {
         let mut c = Correlator::new(16);
@@ -283,14 +378,65 @@ mod tests {
     }
 
     #[test]
+    fn local_maxima_are_listed_highest_first_within_the_window() {
+        let n = 32;
+        let mut c = Correlator::new(n);
+        let filter = centred_blob_filter(&mut c, n, 1.5);
+        // Two blobs in the window, the weaker one 7 px left; a third, strongest, outside it.
+        let mut scene = blob(n, 19.0, 16.0, 1.5);
+        for (s, (w, f)) in scene.iter_mut().zip(
+            blob(n, 12.0, 16.0, 1.5)
+                .into_iter()
+                .zip(blob(n, 28.0, 28.0, 1.5)),
+        ) {
+            *s += 0.6 * w + 2.0 * f;
+        }
+        c.compute_plane(&scene, &filter);
+        let maxima = c.local_maxima_in_window(8, 8, 4);
+        assert!(maxima.len() >= 2, "{maxima:?}");
+        assert!((maxima[0].dx - 3.0).abs() < 0.1 && maxima[0].dy.abs() < 0.1);
+        assert!((maxima[1].dx + 4.0).abs() < 0.1 && maxima[1].dy.abs() < 0.1);
+        assert!(maxima[0].value > maxima[1].value);
+        // The same peak as the single search, its sidelobe statistics computed the short way.
+        let single = c.peak_in_window(8, 8);
+        assert_eq!(
+            (maxima[0].dx, maxima[0].dy, maxima[0].value),
+            (single.dx, single.dy, single.value)
+        );
+        assert!((maxima[0].psr - single.psr).abs() < 1e-9 * single.psr.abs().max(1.0));
+        assert!(maxima
+            .iter()
+            .all(|p| p.dx.abs() <= 8.5 && p.dy.abs() <= 8.5));
+        assert_eq!(c.local_maxima_in_window(8, 8, 1).len(), 1);
+        // In a window of +-2 both blobs lie beyond the edge; the flank of the stronger one comes
+        // first, on the edge, though it is no local maximum.
+        let narrow = c.local_maxima_in_window(2, 2, 4);
+        let single = c.peak_in_window(2, 2);
+        assert_eq!((narrow[0].dx, narrow[0].dy), (single.dx, single.dy));
+        assert!((narrow[0].dx - 2.0).abs() <= 0.5, "{narrow:?}");
+        assert!(!narrow[0].is_inside((2, 2)));
+    }
+
+    #[test]
+    fn a_peak_on_the_window_edge_is_not_inside() {
+        let peak = |dx: f64, dy: f64| Peak {
+            dx,
+            dy,
+            value: 1.0,
+            psr: 5.0,
+        };
+        assert!(peak(3.4, -5.2).is_inside((8, 6)));
+        // Sub-pixel refinement can pull an edge peak slightly inwards; it is still on the edge.
+        assert!(!peak(7.6, 0.0).is_inside((8, 6)));
+        assert!(!peak(-8.0, 0.0).is_inside((8, 6)));
+        assert!(!peak(0.0, 6.0).is_inside((8, 6)));
+    }
+
+    #[test]
     fn sub_pixel_displacement_is_recovered() {
         let n = 32;
         let mut c = Correlator::new(n);
-        let filter = Filter {
-            size: n,
-            spectrum: c.spectrum(&blob(n, 16.0, 16.0, 3.0)),
-            training_count: 1,
-        };
+        let filter = centred_blob_filter(&mut c, n, 3.0);
         let peak = c.correlate(&blob(n, 17.3, 15.6, 3.0), &filter, 8, 8);
         assert!((peak.dx - 1.3).abs() < 0.15, "dx {}", peak.dx);
         assert!((peak.dy + 0.4).abs() < 0.15, "dy {}", peak.dy);
@@ -300,11 +446,7 @@ mod tests {
     fn search_window_excludes_a_stronger_far_peak() {
         let n = 32;
         let mut c = Correlator::new(n);
-        let filter = Filter {
-            size: n,
-            spectrum: c.spectrum(&blob(n, 16.0, 16.0, 2.0)),
-            training_count: 1,
-        };
+        let filter = centred_blob_filter(&mut c, n, 2.0);
         let mut patch = blob(n, 18.0, 16.0, 2.0);
         for (p, q) in patch.iter_mut().zip(blob(n, 28.0, 16.0, 2.0)) {
             *p = 0.5 * *p + q;

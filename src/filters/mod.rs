@@ -184,6 +184,26 @@ pub fn desired_output_into(size: usize, dx: f64, dy: f64, sigma: f64, out: &mut 
     }
 }
 
+/// The normalised (Pearson) correlation of two equally long sample vectors, in [-1, 1]; 0 when
+/// either is constant.
+pub fn zero_mean_correlation(a: &[f32], b: &[f32]) -> f64 {
+    let n = a.len().min(b.len()).max(1) as f64;
+    let mean_a = a.iter().map(|&x| f64::from(x)).sum::<f64>() / n;
+    let mean_b = b.iter().map(|&x| f64::from(x)).sum::<f64>() / n;
+    let (mut ab, mut aa, mut bb) = (0.0, 0.0, 0.0);
+    for (&x, &y) in a.iter().zip(b) {
+        let (x, y) = (f64::from(x) - mean_a, f64::from(y) - mean_b);
+        ab += x * y;
+        aa += x * x;
+        bb += y * y;
+    }
+    if aa <= 0.0 || bb <= 0.0 {
+        0.0
+    } else {
+        ab / (aa * bb).sqrt()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -229,6 +249,16 @@ mod tests {
         // A sub-pixel target splits its height between the two neighbours.
         let g = desired_output(n, 0.5, 0.0, 2.0);
         assert!((g[0] - g[1]).abs() < 1e-7 && g[0] < 1.0);
+    }
+
+    #[test]
+    fn zero_mean_correlation_ignores_offset_and_gain_and_is_zero_for_constants() {
+        let a = [1.0f32, 2.0, 4.0, 3.0];
+        let b: Vec<f32> = a.iter().map(|x| 10.0 + 3.0 * x).collect();
+        let flipped: Vec<f32> = a.iter().map(|x| -x).collect();
+        assert!((zero_mean_correlation(&a, &b) - 1.0).abs() < 1e-9);
+        assert!((zero_mean_correlation(&a, &flipped) + 1.0).abs() < 1e-9);
+        assert_eq!(zero_mean_correlation(&a, &[5.0; 4]), 0.0);
     }
 }
 
