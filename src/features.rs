@@ -110,6 +110,10 @@ pub const MOUTH_SECOND_VIEW_MIN_SHEAR: f64 = 0.03;
 /// 8%), the right pair is among the 4 x 4 for 90-93% of Caltech development faces, while the
 /// highest peaks alone pair right for 77%.
 pub const EYE_CANDIDATES: usize = 4;
+const _: () = assert!(
+    EYE_CANDIDATES > 0,
+    "the pair search needs each eye's highest value"
+);
 
 /// Weight of the squared relative difference between a candidate pair's distance and the
 /// distance the face box predicts, in the pair's score (which adds each peak's height over its
@@ -575,7 +579,6 @@ impl<'f> FeatureLocator<'f> {
         k: f64,
         pivot_v: f64,
     ) -> (Located, Located) {
-        let size = self.filters.size();
         let mut candidates: [Vec<Located>; 2] = [Vec::new(), Vec::new()];
         for (i, (centre, filter)) in [
             (exp_right, &self.filters.right_eye),
@@ -584,9 +587,7 @@ impl<'f> FeatureLocator<'f> {
         .into_iter()
         .enumerate()
         {
-            face.patch(centre, size, k, pivot_v, &mut self.patch);
-            normalize_patch(&mut self.patch);
-            self.correlator.compute_plane(&self.patch, filter);
+            self.correlate_around(face, centre, k, pivot_v, filter);
             candidates[i] = self
                 .correlator
                 .local_maxima_in_window(EYE_SEARCH.0, EYE_SEARCH.1, EYE_CANDIDATES)
@@ -598,13 +599,8 @@ impl<'f> FeatureLocator<'f> {
                 .collect();
         }
         let [rights, lefts] = candidates;
-        let (Some(r0), Some(l0)) = (rights.first().copied(), lefts.first().copied()) else {
-            // A plane without a local maximum in the window (e.g. a constant patch): its
-            // highest value, as a single eye search takes it.
-            let right = self.find(face, exp_right, k, pivot_v, EYE_SEARCH, false);
-            let left = self.find(face, exp_left, k, pivot_v, EYE_SEARCH, true);
-            return (right, left);
-        };
+        // Never empty: the window's highest value always leads the candidates.
+        let (r0, l0) = (rights[0], lefts[0]);
         if !r0.peak.is_inside(EYE_SEARCH) || !l0.peak.is_inside(EYE_SEARCH) {
             // The highest value on the window's edge: that eye lies beyond the window (a rolled
             // head, a box off the face), and the window's other peaks are other features. The
@@ -656,6 +652,21 @@ impl<'f> FeatureLocator<'f> {
         best
     }
 
+    /// Correlates `filter` with the patch around `centre` in the view de-sheared by `k`; the
+    /// plane is left in the correlator for its peak searches.
+    fn correlate_around(
+        &mut self,
+        face: &NormalizedFace,
+        centre: Point,
+        k: f64,
+        pivot_v: f64,
+        filter: &crate::filters::Filter,
+    ) {
+        face.patch(centre, self.filters.size(), k, pivot_v, &mut self.patch);
+        normalize_patch(&mut self.patch);
+        self.correlator.compute_plane(&self.patch, filter);
+    }
+
     fn find_with(
         &mut self,
         face: &NormalizedFace,
@@ -665,12 +676,8 @@ impl<'f> FeatureLocator<'f> {
         window: (usize, usize),
         filter: &crate::filters::Filter,
     ) -> Located {
-        let size = self.filters.size();
-        face.patch(centre, size, k, pivot_v, &mut self.patch);
-        normalize_patch(&mut self.patch);
-        let peak = self
-            .correlator
-            .correlate(&self.patch, filter, window.0, window.1);
+        self.correlate_around(face, centre, k, pivot_v, filter);
+        let peak = self.correlator.peak_in_window(window.0, window.1);
         Located {
             position: Point::new(centre.x + peak.dx, centre.y + peak.dy),
             peak,

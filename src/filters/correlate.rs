@@ -191,17 +191,7 @@ impl Correlator {
                     .filter(|&(_, dx, dy)| (dx, dy) != (highest.1, highest.2)),
             )
             .take(count)
-            .map(|(_, dx, dy)| {
-                let v = self.value(dx, dy);
-                Peak {
-                    dx: dx as f64
-                        + parabola_offset(self.value(dx - 1, dy), v, self.value(dx + 1, dy)),
-                    dy: dy as f64
-                        + parabola_offset(self.value(dx, dy - 1), v, self.value(dx, dy + 1)),
-                    value: v,
-                    psr: self.psr_from_totals(totals, v, dx, dy),
-                }
-            })
+            .map(|(v, dx, dy)| self.refined(dx, dy, self.psr_from_totals(totals, v, dx, dy)))
             .collect()
     }
 
@@ -222,17 +212,17 @@ impl Correlator {
         }
         let side = (2 * PSR_EXCLUSION + 1) as usize;
         let count = (n * n) as usize - side * side;
-        let mean = (sum - near_sum) / count as f64;
-        let var = ((sum_sq - near_sq) / count as f64 - mean * mean).max(0.0);
-        if var <= f64::EPSILON {
-            return 0.0;
-        }
-        (f64::from(peak) - mean) / var.sqrt()
+        sidelobe_ratio(peak, sum - near_sum, sum_sq - near_sq, count)
     }
 
     /// The last plane's peak at integer displacement `(dx, dy)`, refined to sub-pixel precision
     /// by a parabola through the neighbours, with its peak-to-sidelobe ratio.
     pub fn peak_at(&self, dx: isize, dy: isize) -> Peak {
+        self.refined(dx, dy, self.psr(self.value(dx, dy), dx, dy))
+    }
+
+    /// The peak at integer `(dx, dy)` refined by a parabola through the neighbours, with `psr`.
+    fn refined(&self, dx: isize, dy: isize, psr: f64) -> Peak {
         let v = self.value(dx, dy);
         let sub_x = parabola_offset(self.value(dx - 1, dy), v, self.value(dx + 1, dy));
         let sub_y = parabola_offset(self.value(dx, dy - 1), v, self.value(dx, dy + 1));
@@ -240,7 +230,7 @@ impl Correlator {
             dx: dx as f64 + sub_x,
             dy: dy as f64 + sub_y,
             value: v,
-            psr: self.psr(v, dx, dy),
+            psr,
         }
     }
 
@@ -271,15 +261,7 @@ impl Correlator {
                 count += 1;
             }
         }
-        if count < 2 {
-            return 0.0;
-        }
-        let mean = sum / count as f64;
-        let var = (sum_sq / count as f64 - mean * mean).max(0.0);
-        if var <= f64::EPSILON {
-            return 0.0;
-        }
-        (f64::from(peak) - mean) / var.sqrt()
+        sidelobe_ratio(peak, sum, sum_sq, count)
     }
 
     fn load_real(&mut self, patch: &[f32]) {
@@ -313,6 +295,20 @@ fn transpose(src: &[Complex32], dst: &mut [Complex32], n: usize) {
             dst[x * n + y] = src[y * n + x];
         }
     }
+}
+
+/// `(peak - mean) / std` of a sidelobe given by its sum, sum of squares and count; 0 when the
+/// sidelobe has fewer than 2 values or no spread.
+fn sidelobe_ratio(peak: f32, sum: f64, sum_sq: f64, count: usize) -> f64 {
+    if count < 2 {
+        return 0.0;
+    }
+    let mean = sum / count as f64;
+    let var = (sum_sq / count as f64 - mean * mean).max(0.0);
+    if var <= f64::EPSILON {
+        return 0.0;
+    }
+    (f64::from(peak) - mean) / var.sqrt()
 }
 
 /// Vertex of the parabola through three equally spaced samples, relative to the middle one,
