@@ -1,11 +1,14 @@
-//! Pipeline benchmarks: the estimate for one face once it is detected (target <= 1 ms; a tilted
-//! head, searched again upright, separately), face detection on a 1920x1080 frame, and the whole
+//! Pipeline benchmarks: the estimate for one face once it is detected (target <= 1 ms), with the
+//! landmark network (the default) and with the filters, and one forward pass of the network; a
+//! tilted head, searched again upright, separately; face detection on a 1920x1080 frame, and the whole
 //! estimate of a frame with one face and with none. Correction speed is in `benches/warp.rs`.
 //!
 //! Run: `cargo bench --bench pipeline`.
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use image::imageops::FilterType;
+use unshear::landmarks::{LandmarkNet, Workspace};
+use unshear::pipeline::Locator;
 use unshear::Unshear;
 
 fn fixture() -> image::DynamicImage {
@@ -39,6 +42,23 @@ fn bench(c: &mut Criterion) {
     let face = unshear.detector().detect(&gray)[0];
     c.bench_function("estimate one face (after detection)", |b| {
         b.iter(|| unshear.estimate_face(&gray, face))
+    });
+    let mut with_filters = match Unshear::with_defaults() {
+        Ok(u) => u,
+        Err(e) => panic!("models: {e}"),
+    };
+    with_filters.set_locator(Locator::Filters);
+    c.bench_function("estimate one face, filters (after detection)", |b| {
+        b.iter(|| with_filters.estimate_face(&gray, face))
+    });
+    let net = match LandmarkNet::embedded() {
+        Ok(n) => n,
+        Err(e) => panic!("network: {e}"),
+    };
+    let crop = vec![128.0f32; net.size() * net.size()];
+    let mut workspace = Workspace::default();
+    c.bench_function("landmark network, one crop", |b| {
+        b.iter(|| net.run(&crop, &mut workspace).shear)
     });
     // A head tilted by 22 degrees: its features are searched again in the face turned upright.
     let tilted = match unshear::warp::rotate::rotate_gray(&gray, 22f64.to_radians()) {

@@ -1,5 +1,7 @@
 #!/usr/bin/env python3
-"""Fits the confidence model of `pipeline::confidence` to an `unshear eval shear --out DIR` run.
+"""Fits the confidence model of `pipeline::confidence` (the filters' estimates) or, with
+`--locator network`, of `pipeline::network_confidence` (the landmark network's) to an
+`unshear eval shear --out DIR` run.
 
 The model is a logistic regression of "the measured k is within 0.10 of the true k" on the
 features listed in FEATURES (the same, in the same order, as `pipeline::confidence` computes).
@@ -51,6 +53,32 @@ def features(s):
     ]
 
 
+def network_features(s):
+    spread = s["spread"]
+    k_points = s["k_points"]
+    return [
+        max(spread[0], spread[1]),
+        spread[2],
+        spread[3],
+        abs(s["k_network"] - k_points) if k_points is not None else 0.5,
+        abs(s["k_nose_tip"] - s["k_mouth"])
+        if s["k_nose_tip"] is not None and s["k_mouth"] is not None
+        else 0.5,
+        abs(s["roll_degrees"]) / 10.0,
+        abs(s["eye_box_ratio"] - EYE_DISTANCE_PER_BOX_WIDTH) * 10.0,
+    ]
+
+
+NETWORK_FEATURES = [
+    "wider eye heatmap spread (eye distances)",
+    "nose heatmap spread",
+    "mouth heatmap spread",
+    "|k_network - k_points|",
+    "|k_nose - k_mouth| (network axes)",
+    "|roll| / 10 degrees",
+    "|eye distance / box width - 0.381| * 10",
+]
+
 FEATURES = [
     "ln weaker eye PSR",
     "ln weaker nostril PSR",
@@ -73,7 +101,7 @@ def face_key(s):
 
 def arrays(samples):
     rows = [s for s in samples if s["measured"] is not None]
-    x = np.array([features(s) for s in rows])
+    x = np.array([FEATURE_FN(s) for s in rows])
     y = np.array([abs(s["measured"] - s["true_k"]) <= GOOD for s in rows], dtype=float)
     images = [s["image"] for s in rows]
     return x, y, images
@@ -125,8 +153,17 @@ def report(name, x, y, weights, intercept):
         )
 
 
+FEATURE_FN = features
+
+
 def main():
+    global FEATURE_FN, FEATURES
     args = sys.argv[1:]
+    if "--locator" in args:
+        i = args.index("--locator")
+        if args[i + 1] == "network":
+            FEATURE_FN, FEATURES = network_features, NETWORK_FEATURES
+        del args[i : i + 2]
     if not args or args[0] in ("-h", "--help") or len(args) not in (1, 3):
         print(__doc__)
         return
@@ -152,7 +189,8 @@ def main():
     for name, w in zip(FEATURES, weights):
         print(f"  {w:+.3f}  {name}")
     print(
-        "ConfidenceModel { weights: [%s], intercept: %.3f }"
+        ("NetworkConfidence" if FEATURE_FN is network_features else "ConfidenceModel")
+        + " { weights: [%s], intercept: %.3f }"
         % (", ".join(f"{w:.3f}" for w in weights), intercept)
     )
     report("fitted", x, y, weights, intercept)

@@ -45,6 +45,10 @@ pub enum Error {
     /// MOSSE).
     #[error("filter file: unknown filter type code {0}")]
     UnknownFilterType(u32),
+    /// A landmark-network file is malformed, truncated, of an unknown version or does not match
+    /// the network's topology.
+    #[error("landmark network file: {0}")]
+    ModelFile(String),
     /// A training data set is missing, malformed or too small.
     #[error("training data: {0}")]
     Training(String),

@@ -26,6 +26,7 @@ use image::GrayImage;
 
 use crate::filters::{normalize_patch, Correlator, EyeFilters, Peak};
 use crate::geometry::{Point, Rect};
+use crate::resample::{bilinear_clamped, resample};
 
 /// Width of the normalised face, pixels (the paper's 150).
 pub const FACE_WIDTH: f64 = 150.0;
@@ -408,99 +409,6 @@ impl NormalizedFace {
             }
         }
     }
-}
-
-/// Separable triangle-filter resampling of a window of `gray`: output pixel `(i, j)` is centred
-/// on image point `(x0 + i * scale, y0 + j * scale)`; the filter radius is `max(scale, 1)`, which
-/// is bilinear when enlarging and an area-weighted average when shrinking (no aliasing).
-/// Hand-written because `image::imageops::resize` only takes integer crops and sizes, and the
-/// face geometry needs sub-pixel placement.
-fn resample(
-    gray: &GrayImage,
-    x0: f64,
-    y0: f64,
-    scale: f64,
-    width: usize,
-    height: usize,
-) -> Vec<f32> {
-    let (iw, ih) = (gray.width() as usize, gray.height() as usize);
-    let xs = taps(x0, scale, width, iw);
-    let ys = taps(y0, scale, height, ih);
-    // Only the image columns some output column reads.
-    let col_lo = xs.iter().map(|t| t.first).min().unwrap_or(0);
-    let col_hi = xs
-        .iter()
-        .map(|t| t.first + t.weights.len())
-        .max()
-        .unwrap_or(0);
-    let span = col_hi.saturating_sub(col_lo);
-    let raw = gray.as_raw();
-    let mut column_pass = vec![0f32; span];
-    let mut out = vec![0f32; width * height];
-    for (j, ty) in ys.iter().enumerate() {
-        column_pass.iter_mut().for_each(|v| *v = 0.0);
-        for (k, &w) in ty.weights.iter().enumerate() {
-            let row = &raw[(ty.first + k) * iw..(ty.first + k + 1) * iw];
-            for (c, v) in column_pass.iter_mut().enumerate() {
-                *v += w * f32::from(row[col_lo + c]);
-            }
-        }
-        let out_row = &mut out[j * width..(j + 1) * width];
-        for (o, tx) in out_row.iter_mut().zip(&xs) {
-            let start = tx.first - col_lo;
-            *o = tx
-                .weights
-                .iter()
-                .zip(&column_pass[start..])
-                .map(|(w, v)| w * v)
-                .sum();
-        }
-    }
-    out
-}
-
-/// Bilinear sample of a `w x h` raster at `(x, y)`, coordinates clamped to the raster.
-fn bilinear_clamped(src: &[f32], w: usize, h: usize, x: f64, y: f64) -> f32 {
-    let x = x.clamp(0.0, (w - 1) as f64);
-    let y = y.clamp(0.0, (h - 1) as f64);
-    let (x0, y0) = (x.floor() as usize, y.floor() as usize);
-    let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
-    let (fx, fy) = ((x - x0 as f64) as f32, (y - y0 as f64) as f32);
-    let top = src[y0 * w + x0] + (src[y0 * w + x1] - src[y0 * w + x0]) * fx;
-    let bottom = src[y1 * w + x0] + (src[y1 * w + x1] - src[y1 * w + x0]) * fx;
-    top + (bottom - top) * fy
-}
-
-/// The source samples and weights of one output sample (a run of consecutive indices).
-struct Taps {
-    first: usize,
-    weights: Vec<f32>,
-}
-
-/// Triangle-filter taps for `n` output samples at `origin + i * scale` over `len` source samples;
-/// indices outside `[0, len)` are clamped to the edge (edge replication) and their weights merged.
-fn taps(origin: f64, scale: f64, n: usize, len: usize) -> Vec<Taps> {
-    let radius = scale.max(1.0);
-    let last = len.saturating_sub(1) as isize;
-    (0..n)
-        .map(|i| {
-            let c = origin + i as f64 * scale;
-            let lo = (c - radius).ceil() as isize;
-            let hi = (c + radius).floor() as isize;
-            let (first, end) = (lo.clamp(0, last) as usize, hi.clamp(0, last) as usize);
-            let mut weights = vec![0f32; end - first + 1];
-            let mut total = 0.0;
-            for s in lo..=hi {
-                let w = (1.0 - ((s as f64 - c) / radius).abs()).max(0.0);
-                weights[(s.clamp(0, last) as usize) - first] += w as f32;
-                total += w;
-            }
-            if total > 0.0 {
-                weights.iter_mut().for_each(|w| *w /= total as f32);
-            }
-            Taps { first, weights }
-        })
-        .collect()
 }
 
 /// The expected positions of both eyes in the normalised face (from the detector-box medians).
@@ -905,6 +813,30 @@ impl<'f> FeatureLocator<'f> {
         (right, left)
     }
 
+    /// The paper's nostrils (the left-eye filter in crops below each eye) below eyes located by
+    /// other means (image pixels), in the view of `face` de-sheared by `k` about the eye row:
+    /// each nostril in image pixels with its peak-to-sidelobe ratio, right then left.
+    pub fn nostrils_below(
+        &mut self,
+        face: &NormalizedFace,
+        right_eye: Point,
+        left_eye: Point,
+        k: f64,
+    ) -> [(Point, f64); 2] {
+        let (r, l) = (face.from_image(right_eye), face.from_image(left_eye));
+        let pivot_v = (r.y + l.y) / 2.0;
+        // The eyes in the de-sheared view.
+        let view = |p: Point| Point::new(p.x - k * (p.y - pivot_v), p.y);
+        let (right, left) = self.find_nostrils(face, view(r), view(l), k, pivot_v);
+        [right, left].map(|n| {
+            let p = n.position;
+            (
+                face.to_image(Point::new(p.x + k * (p.y - pivot_v), p.y)),
+                n.peak.psr,
+            )
+        })
+    }
+
     /// The shear measured from the nose in the view of the face de-sheared by `k_view` (about
     /// the eye row): the nose filter's peak against the eyes' midpoint (a vertical line of the
     /// upright face joins them), added to `k_view`. `wide` searches the whole sideways range
@@ -1226,30 +1158,6 @@ mod tests {
 
     fn ramp(w: u32, h: u32) -> GrayImage {
         GrayImage::from_fn(w, h, |x, y| image::Luma([((x * 2 + y) % 256) as u8]))
-    }
-
-    #[test]
-    fn resample_at_unit_scale_reproduces_pixels() {
-        let img = ramp(40, 30);
-        let out = resample(&img, 5.0, 7.0, 1.0, 10, 8);
-        for j in 0..8 {
-            for i in 0..10 {
-                let expected = f32::from(img.get_pixel(5 + i as u32, 7 + j as u32)[0]);
-                assert!((out[j * 10 + i] - expected).abs() < 1e-4);
-            }
-        }
-    }
-
-    #[test]
-    fn resample_shrinking_averages_and_preserves_mean() {
-        // A fine checkerboard shrunk 4x must come out flat grey, not aliased.
-        let img = GrayImage::from_fn(64, 64, |x, y| {
-            image::Luma([if (x + y) % 2 == 0 { 0 } else { 200 }])
-        });
-        let out = resample(&img, 8.0, 8.0, 4.0, 10, 10);
-        for v in out {
-            assert!((v - 100.0).abs() < 8.0, "{v}");
-        }
     }
 
     #[test]

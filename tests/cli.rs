@@ -410,7 +410,14 @@ fn filter_type_selects_a_builtin_set() {
     let mut estimates = Vec::new();
     for t in ["umace", "asef", "mosse"] {
         let out = unshear()
-            .args(["estimate", "--json", "--filter-type", t])
+            .args([
+                "estimate",
+                "--json",
+                "--locator",
+                "filters",
+                "--filter-type",
+                t,
+            ])
             .arg(&sheared)
             .assert()
             .success()

@@ -4,8 +4,20 @@
 use std::path::{Path, PathBuf};
 
 use image::DynamicImage;
+use unshear::pipeline::Locator;
 use unshear::warp::{apply_shear, Canvas, Interpolation};
 use unshear::{Shear, Unshear};
+
+/// The built-in models with each locator: the landmark network (the default) and the paper's
+/// correlation filters; every contract below holds for both.
+fn correctors() -> [(Locator, Unshear); 2] {
+    [Locator::Network, Locator::Filters].map(|locator| {
+        let mut unshear = Unshear::with_defaults().expect("built-in models");
+        unshear.set_locator(locator);
+        assert_eq!(unshear.locator(), locator);
+        (locator, unshear)
+    })
+}
 
 fn fixtures() -> Vec<PathBuf> {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/faces");
@@ -36,18 +48,24 @@ fn sheared(img: &DynamicImage, k: f64) -> DynamicImage {
 /// The requirement: within 0.05 of the true k on each fixture for each k.
 #[test]
 fn estimate_within_0_05_of_the_true_shear() {
-    let unshear = Unshear::with_defaults().expect("built-in models");
-    for path in fixtures() {
-        let img = load(&path);
-        for k in [-0.40, -0.20, 0.0, 0.20, 0.40] {
-            let report = unshear.estimate(&sheared(&img, k));
-            assert_eq!(report.faces.len(), 1, "{}: k {k}: one face", path.display());
-            let est = report.k.expect("an estimate");
-            assert!(
-                (est - k).abs() <= 0.05,
-                "{}: true {k}, estimated {est:.4}",
-                path.display()
-            );
+    for (locator, unshear) in correctors() {
+        for path in fixtures() {
+            let img = load(&path);
+            for k in [-0.40, -0.20, 0.0, 0.20, 0.40] {
+                let report = unshear.estimate(&sheared(&img, k));
+                assert_eq!(
+                    report.faces.len(),
+                    1,
+                    "{locator:?} {}: k {k}: one face",
+                    path.display()
+                );
+                let est = report.k.expect("an estimate");
+                assert!(
+                    (est - k).abs() <= 0.05,
+                    "{locator:?} {}: true {k}, estimated {est:.4}",
+                    path.display()
+                );
+            }
         }
     }
 }
@@ -58,29 +76,30 @@ fn estimate_within_0_05_of_the_true_shear() {
 /// fixture and shear; the corrected image has been resampled twice, which blurs it).
 #[test]
 fn correcting_removes_the_shear() {
-    let unshear = Unshear::with_defaults().expect("built-in models");
-    let path = &fixtures()[0];
-    let img = load(path);
-    let base = unshear.estimate(&img).k.expect("estimate on the original");
-    let distorted = sheared(&img, 0.3);
-    let report = unshear.estimate(&distorted);
-    let estimate = report.k.expect("estimate on the distorted image");
-    let fixed = unshear
-        .correct(&distorted, &report, &Default::default())
-        .expect("correct");
-    assert_eq!(
-        (fixed.width(), fixed.height()),
-        (distorted.width(), distorted.height())
-    );
-    let residual = unshear
-        .estimate(&fixed)
-        .k
-        .expect("estimate after correction");
-    let expected = base + (0.3 - estimate);
-    assert!(
-        (residual - expected).abs() <= 0.05,
-        "residual {residual:.4}, expected {expected:.4} (original {base:.4}, estimate {estimate:.4})"
-    );
+    for (locator, unshear) in correctors() {
+        let path = &fixtures()[0];
+        let img = load(path);
+        let base = unshear.estimate(&img).k.expect("estimate on the original");
+        let distorted = sheared(&img, 0.3);
+        let report = unshear.estimate(&distorted);
+        let estimate = report.k.expect("estimate on the distorted image");
+        let fixed = unshear
+            .correct(&distorted, &report, &Default::default())
+            .expect("correct");
+        assert_eq!(
+            (fixed.width(), fixed.height()),
+            (distorted.width(), distorted.height())
+        );
+        let residual = unshear
+            .estimate(&fixed)
+            .k
+            .expect("estimate after correction");
+        let expected = base + (0.3 - estimate);
+        assert!(
+            (residual - expected).abs() <= 0.05,
+            "{locator:?}: residual {residual:.4}, expected {expected:.4} (original {base:.4}, estimate {estimate:.4})"
+        );
+    }
 }
 
 /// k is dimensionless: the estimate on a 1.5x enlarged image matches the original's within 0.03.
@@ -89,23 +108,24 @@ fn correcting_removes_the_shear() {
 /// 0.020 on these fixtures).
 #[test]
 fn estimate_is_unchanged_by_uniform_rescale() {
-    let unshear = Unshear::with_defaults().expect("built-in models");
-    for path in fixtures() {
-        let img = sheared(&load(&path), 0.2);
-        let big = img.resize_exact(
-            img.width() * 3 / 2,
-            img.height() * 3 / 2,
-            image::imageops::FilterType::Triangle,
-        );
-        let (a, b) = (
-            unshear.estimate(&img).k.expect("k"),
-            unshear.estimate(&big).k.expect("k"),
-        );
-        assert!(
-            (a - b).abs() <= 0.03,
-            "{}: {a:.4} vs {b:.4} after rescale",
-            path.display()
-        );
+    for (locator, unshear) in correctors() {
+        for path in fixtures() {
+            let img = sheared(&load(&path), 0.2);
+            let big = img.resize_exact(
+                img.width() * 3 / 2,
+                img.height() * 3 / 2,
+                image::imageops::FilterType::Triangle,
+            );
+            let (a, b) = (
+                unshear.estimate(&img).k.expect("k"),
+                unshear.estimate(&big).k.expect("k"),
+            );
+            assert!(
+                (a - b).abs() <= 0.03,
+                "{locator:?} {}: {a:.4} vs {b:.4} after rescale",
+                path.display()
+            );
+        }
     }
 }
 
@@ -115,41 +135,64 @@ fn estimate_is_unchanged_by_uniform_rescale() {
 /// are not mirror-symmetric (measured: the two estimates differ by up to 0.032 here).
 #[test]
 fn mirror_image_gives_minus_k() {
-    let unshear = Unshear::with_defaults().expect("built-in models");
-    for path in fixtures() {
-        let img = sheared(&load(&path), 0.25);
-        let a = unshear.estimate(&img).k.expect("k");
-        let b = unshear.estimate(&img.fliph()).k.expect("k of mirror");
-        assert!(
-            (a + b).abs() <= 0.05,
-            "{}: {a:.4} and mirrored {b:.4}",
-            path.display()
-        );
+    for (locator, unshear) in correctors() {
+        for path in fixtures() {
+            let img = sheared(&load(&path), 0.25);
+            let a = unshear.estimate(&img).k.expect("k");
+            let b = unshear.estimate(&img.fliph()).k.expect("k of mirror");
+            assert!(
+                (a + b).abs() <= 0.05,
+                "{locator:?} {}: {a:.4} and mirrored {b:.4}",
+                path.display()
+            );
+        }
     }
 }
 
 /// Points are reported in the input's own pixels: the eyes lie inside the face box, the
-/// subject's right eye on the image's left, nostrils below the eyes.
+/// subject's right eye on the image's left, nostrils below the eyes, the mouth below them and
+/// between the eyes. A clear lab photo is trusted: clear correlation peaks with the filters, a
+/// face score near 1 and tight heatmaps with the network.
 #[test]
 fn points_are_in_image_pixels_with_the_subjects_sides() {
-    let unshear = Unshear::with_defaults().expect("built-in models");
     let img = load(&fixtures()[1]);
-    let report = unshear.estimate(&img);
-    let f = report.faces.first().expect("a face");
-    assert!(f.face_box.contains(f.right_eye) && f.face_box.contains(f.left_eye));
-    assert!(f.right_eye.x < f.left_eye.x && f.right_nostril.x < f.left_nostril.x);
-    assert!(f.right_nostril.y > f.right_eye.y + 10.0 && f.left_nostril.y > f.left_eye.y + 10.0);
-    // Clear eyes on a lab photo give clear correlation peaks, and the estimate is trusted.
-    assert!(f.psr[0] > 4.0 && f.psr[1] > 4.0, "eye PSRs {:?}", f.psr);
-    assert!(f.confidence > 0.5, "confidence {}", f.confidence);
-    let mouth = f.mouth.expect("the built-in filters locate the mouth");
-    assert!(mouth.y > f.right_nostril.y && mouth.y > f.left_nostril.y);
-    assert!(f.right_eye.x < mouth.x && mouth.x < f.left_eye.x);
-    assert!(
-        f.roll_degrees.abs() < 5.0,
-        "a lab face is upright: {}",
-        f.roll_degrees
-    );
+    for (locator, unshear) in correctors() {
+        let report = unshear.estimate(&img);
+        let f = report.faces.first().expect("a face");
+        assert_eq!(f.locator, locator);
+        assert!(f.face_box.contains(f.right_eye) && f.face_box.contains(f.left_eye));
+        assert!(f.right_eye.x < f.left_eye.x && f.right_nostril.x < f.left_nostril.x);
+        assert!(f.right_nostril.y > f.right_eye.y + 10.0 && f.left_nostril.y > f.left_eye.y + 10.0);
+        match locator {
+            Locator::Filters => {
+                assert!(f.psr[0] > 4.0 && f.psr[1] > 4.0, "eye PSRs {:?}", f.psr);
+                assert!(f.face_score.is_none() && f.spread.is_none());
+            }
+            Locator::Network => {
+                let score = f.face_score.expect("the network scores the face");
+                assert!(score > 0.9, "face score {score}");
+                // Heatmap spreads in eye distances: a sharp eye is a few crop pixels wide
+                // (an eye distance is 29 crop pixels).
+                let spread = f.spread.expect("the network's spreads");
+                assert!(spread.iter().all(|&s| s > 0.0 && s < 0.25), "{spread:?}");
+                let nose = f.nose_tip.expect("the network's nose point");
+                assert!(nose.y > f.right_eye.y && nose.y < f.mouth.expect("mouth").y);
+            }
+        }
+        assert!(
+            f.confidence > 0.5,
+            "{locator:?}: confidence {}",
+            f.confidence
+        );
+        let mouth = f.mouth.expect("the built-in models locate the mouth");
+        assert!(mouth.y > f.right_nostril.y && mouth.y > f.left_nostril.y);
+        assert!(f.right_eye.x < mouth.x && mouth.x < f.left_eye.x);
+        assert!(
+            f.roll_degrees.abs() < 5.0,
+            "{locator:?}: a lab face is upright: {}",
+            f.roll_degrees
+        );
+    }
 }
 
 /// Beyond the cascade's tolerance (|k| = 0.7 here) the paper's single detection pass loses these
@@ -157,10 +200,6 @@ fn points_are_in_image_pixels_with_the_subjects_sides() {
 /// most 0.036 off over these five cases).
 #[test]
 fn de_sheared_detection_finds_faces_the_single_pass_misses() {
-    let mut single_pass = Unshear::with_defaults().expect("built-in models");
-    single_pass.set_shear_hypotheses(&[]);
-    single_pass.set_roll_hypotheses(&[]);
-    let default = Unshear::with_defaults().expect("built-in models");
     let cases = [
         ("subject01.normal.jpeg", 0.7),
         ("subject01.normal.jpeg", -0.7),
@@ -169,15 +208,59 @@ fn de_sheared_detection_finds_faces_the_single_pass_misses() {
         ("subject14.normal.jpeg", -0.7),
     ];
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/faces");
-    for (name, k) in cases {
-        let img = sheared(&load(&dir.join(name)), k);
-        assert!(
-            single_pass.estimate(&img).faces.is_empty(),
-            "{name} at {k}: the single pass should miss it"
+    for (locator, default) in correctors() {
+        let mut single_pass = Unshear::with_defaults().expect("built-in models");
+        single_pass.set_locator(locator);
+        single_pass.set_shear_hypotheses(&[]);
+        single_pass.set_roll_hypotheses(&[]);
+        for (name, k) in cases {
+            let img = sheared(&load(&dir.join(name)), k);
+            assert!(
+                single_pass.estimate(&img).faces.is_empty(),
+                "{locator:?} {name} at {k}: the single pass should miss it"
+            );
+            let report = default.estimate(&img);
+            let est = report.k.expect("found and estimated with the retries");
+            assert!(
+                (est - k).abs() <= 0.05,
+                "{locator:?} {name}: true {k}, estimated {est}"
+            );
+        }
+    }
+}
+
+/// Two people side by side, one still and one moving fast (its face sheared by 0.7, beyond the
+/// cascade's tolerance): by default the still face is found and trusted in the image as it is,
+/// so the retries do not run and the moving face is missed; `set_search_every_view` searches
+/// the de-sheared views all the same and finds it, each face with its own shear.
+#[test]
+fn searching_every_view_finds_a_second_face_sheared_beyond_the_cascade() {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/faces");
+    let still = Unshear::gray(&load(&dir.join("subject01.normal.jpeg")));
+    let moving = Unshear::gray(&sheared(&load(&dir.join("subject14.normal.jpeg")), 0.7));
+    let mut pair = image::GrayImage::new(still.width() + moving.width(), still.height());
+    image::imageops::replace(&mut pair, &still, 0, 0);
+    image::imageops::replace(&mut pair, &moving, i64::from(still.width()), 0);
+    for (locator, mut unshear) in correctors() {
+        let found = unshear.estimate_gray(&pair);
+        assert_eq!(
+            found.faces.len(),
+            1,
+            "{locator:?}: only the still face by default"
         );
-        let report = default.estimate(&img);
-        let est = report.k.expect("found and estimated with the retries");
-        assert!((est - k).abs() <= 0.05, "{name}: true {k}, estimated {est}");
+        unshear.set_search_every_view(true);
+        let mut faces = unshear.estimate_gray(&pair).faces;
+        assert_eq!(faces.len(), 2, "{locator:?}: both faces");
+        faces.sort_by(|a, b| a.face_box.x.total_cmp(&b.face_box.x));
+        // The still face reads as it does alone (the second face does not disturb it), the
+        // moving one within 0.05 of its shear.
+        let alone = unshear.estimate_gray(&still).faces[0].k_measured;
+        let (a, b) = (faces[0].k_measured, faces[1].k_measured);
+        assert!(
+            (a - alone).abs() <= 0.01,
+            "{locator:?}: still face {a} alone {alone}"
+        );
+        assert!((b - 0.7).abs() <= 0.05, "{locator:?}: moving face {b}");
     }
 }
 
@@ -228,30 +311,36 @@ fn fallback_cascade_finds_what_the_main_detector_misses() {
 #[test]
 fn rolled_faces_are_measured_upright() {
     use unshear::warp::rotate::rotate_gray;
-    let unshear = Unshear::with_defaults().expect("built-in models");
-    for path in fixtures() {
-        let gray = Unshear::gray(&load(&path));
-        let base = unshear.estimate_gray(&gray).k.expect("upright estimate");
-        for degrees in [-22.0f64, 22.0] {
-            // Turning the image by `a` (clockwise for a > 0) tilts the head by the same angle;
-            // the reported roll is positive when the subject's left eye (image right) is lower,
-            // i.e. for a clockwise tilt.
-            let (turned, _) = rotate_gray(&gray, degrees.to_radians()).expect("rotate");
-            let report = unshear.estimate_gray(&turned);
-            assert_eq!(report.faces.len(), 1, "{}: {degrees}", path.display());
-            let face = &report.faces[0];
-            assert!(
-                (face.k_measured - base).abs() <= 0.05,
-                "{}: tilted {degrees}, k {:.3} against upright {base:.3}",
-                path.display(),
-                face.k_measured
-            );
-            assert!(
-                (face.roll_degrees - degrees).abs() <= 3.0,
-                "{}: tilted {degrees}, roll {:.1}",
-                path.display(),
-                face.roll_degrees
-            );
+    for (locator, unshear) in correctors() {
+        for path in fixtures() {
+            let gray = Unshear::gray(&load(&path));
+            let base = unshear.estimate_gray(&gray).k.expect("upright estimate");
+            for degrees in [-22.0f64, 22.0] {
+                // Turning the image by `a` (clockwise for a > 0) tilts the head by the same angle;
+                // the reported roll is positive when the subject's left eye (image right) is lower,
+                // i.e. for a clockwise tilt.
+                let (turned, _) = rotate_gray(&gray, degrees.to_radians()).expect("rotate");
+                let report = unshear.estimate_gray(&turned);
+                assert_eq!(
+                    report.faces.len(),
+                    1,
+                    "{locator:?} {}: {degrees}",
+                    path.display()
+                );
+                let face = &report.faces[0];
+                assert!(
+                    (face.k_measured - base).abs() <= 0.05,
+                    "{locator:?} {}: tilted {degrees}, k {:.3} against upright {base:.3}",
+                    path.display(),
+                    face.k_measured
+                );
+                assert!(
+                    (face.roll_degrees - degrees).abs() <= 3.0,
+                    "{locator:?} {}: tilted {degrees}, roll {:.1}",
+                    path.display(),
+                    face.roll_degrees
+                );
+            }
         }
     }
 }
@@ -263,22 +352,23 @@ fn rolled_faces_are_measured_upright() {
 /// 0.030-0.055 off (`subject01` boxed 15% small read 0.090 against 0.035).
 #[test]
 fn a_face_boxed_at_the_wrong_scale_is_measured_at_its_eyes_scale() {
-    let unshear = Unshear::with_defaults().expect("built-in models");
-    for path in fixtures() {
-        let gray = Unshear::gray(&load(&path));
-        let detected = unshear.estimate_gray(&gray);
-        let face = &detected.faces[0];
-        let base = face.k_measured;
-        for factor in [0.85, 1.15] {
-            let scaled = face.face_box.scaled_about_center(factor);
-            let report = unshear.estimate_face(&gray, scaled).expect("an estimate");
-            assert_eq!(report.face_box, scaled, "{}", path.display());
-            assert!(
-                (report.k_measured - base).abs() <= 0.03,
-                "{}: box x{factor}, k {:.3} against {base:.3}",
-                path.display(),
-                report.k_measured
-            );
+    for (locator, unshear) in correctors() {
+        for path in fixtures() {
+            let gray = Unshear::gray(&load(&path));
+            let detected = unshear.estimate_gray(&gray);
+            let face = &detected.faces[0];
+            let base = face.k_measured;
+            for factor in [0.85, 1.15] {
+                let scaled = face.face_box.scaled_about_center(factor);
+                let report = unshear.estimate_face(&gray, scaled).expect("an estimate");
+                assert_eq!(report.face_box, scaled, "{locator:?} {}", path.display());
+                assert!(
+                    (report.k_measured - base).abs() <= 0.03,
+                    "{locator:?} {}: box x{factor}, k {:.3} against {base:.3}",
+                    path.display(),
+                    report.k_measured
+                );
+            }
         }
     }
 }

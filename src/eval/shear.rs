@@ -77,6 +77,14 @@ pub struct ShearSample {
     pub psr: Option<[f64; 5]>,
     /// Located eye distance over the face box width, when the face was found.
     pub eye_box_ratio: Option<f64>,
+    /// The landmark network's own reading of the shear (network locator only).
+    pub k_network: Option<f64>,
+    /// The shear the network's points give (network locator only).
+    pub k_points: Option<f64>,
+    /// The network's heatmap spreads, eye distances (network locator only).
+    pub spread: Option<[f64; 4]>,
+    /// The network's face score (network locator only).
+    pub face_score: Option<f64>,
     /// Worst of the two eyes' localisation errors, as a fraction of the eye distance.
     pub eye_error: Option<f64>,
     /// Where each located eye lies from its annotation, in eye distances of the sheared image:
@@ -224,6 +232,10 @@ fn run_one(
                 nose_tip_psr: report.map(|d| d.nose_tip_psr),
                 psr: report.map(|d| d.psr),
                 eye_box_ratio: report.map(|d| d.right_eye.distance(d.left_eye) / d.face_box.width),
+                k_network: report.and_then(|d| d.k_network),
+                k_points: report.and_then(|d| d.k_points),
+                spread: report.and_then(|d| d.spread),
+                face_score: report.and_then(|d| d.face_score),
                 eye_error: report
                     .map(|d| d.right_eye.distance(re).max(d.left_eye.distance(le)) / ed),
                 eye_offsets: report.map(|d| {

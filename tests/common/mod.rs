@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 /// The keys of a face object in the `--json` output of `estimate` and `video`, sorted.
 #[allow(dead_code)] // Not every test file uses every helper.
-pub const FACE_JSON_KEYS: [&str; 10] = [
+pub const FACE_JSON_KEYS: [&str; 11] = [
     "box",
     "confidence",
     "k",
@@ -12,6 +12,7 @@ pub const FACE_JSON_KEYS: [&str; 10] = [
     "left_eye",
     "left_nostril",
     "mouth",
+    "nose",
     "right_eye",
     "right_nostril",
     "roll",

@@ -43,6 +43,14 @@ pub struct ModelArgs {
     /// Which built-in filter set to use [default: mosse, the built-in default type].
     #[arg(long, value_enum, value_name = "TYPE", conflicts_with = "filters")]
     pub filter_type: Option<FilterTypeArg>,
+    /// What locates the eyes, nose and mouth: `network` (the built-in landmark network, which
+    /// also reads the shear itself) or `filters` (the paper's correlation filters throughout,
+    /// with --filter-type, --shear-model and --refine) [default: network].
+    #[arg(long, value_enum, value_name = "LOCATOR")]
+    pub locator: Option<LocatorArg>,
+    /// Landmark network file written by `scripts/train_landmarks.py` [default: built-in].
+    #[arg(long, value_name = "PATH")]
+    pub network: Option<PathBuf>,
     /// Refuse images with more pixels than this (checked before decoding).
     #[arg(long, value_name = "N", default_value_t = unshear::imageio::DEFAULT_MAX_PIXELS)]
     pub max_pixels: u64,
@@ -87,6 +95,11 @@ pub struct ModelArgs {
     /// No turned views for rolled heads (the de-sheared views are still searched).
     #[arg(long)]
     pub no_roll_search: bool,
+    /// Search every de-sheared and turned view of every image, not only when the views before
+    /// gave no trusted face: more faces found under strong shear and in images with several
+    /// faces, for one more detection per view (see the README's *Accuracy*).
+    #[arg(long, conflicts_with = "no_shear_search")]
+    pub search_every_view: bool,
     /// Also ask the built-in second cascade (OpenCV's frontalface_default) when the main one
     /// finds no face with an accepted estimate: more faces found, but the extra ones are hard
     /// and their estimates often wrong (see the README's *Accuracy*). Not with --cascade or
@@ -99,9 +112,35 @@ pub struct ModelArgs {
     /// boxes, and faces under about 60 px are too small to measure the shear well anyway.
     #[arg(long, value_name = "PX")]
     pub min_face: Option<u32>,
+    /// The detector's minimum of merged raw hits for a face (OpenCV's `minNeighbors`): lower
+    /// finds more faces and more false ones [default: 3, as OpenCV].
+    #[arg(long, value_name = "N")]
+    pub min_neighbors: Option<u32>,
+    /// The detector's scale step (OpenCV's `scaleFactor`, above 1): smaller finds more faces
+    /// and takes longer [default: 1.1, as OpenCV].
+    #[arg(long, value_name = "F")]
+    pub scale_factor: Option<f64>,
     /// Worker threads [default: one per core].
     #[arg(long, short = 'j', value_name = "N")]
     pub jobs: Option<usize>,
+}
+
+/// `--locator` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum LocatorArg {
+    /// The landmark network.
+    Network,
+    /// The correlation filters (the paper's method).
+    Filters,
+}
+
+impl From<LocatorArg> for unshear::pipeline::Locator {
+    fn from(l: LocatorArg) -> Self {
+        match l {
+            LocatorArg::Network => Self::Network,
+            LocatorArg::Filters => Self::Filters,
+        }
+    }
 }
 
 /// `--shear-model` values.

@@ -26,6 +26,7 @@ use report::JsonLine;
 use unshear::detect::{Cascade, DetectorParams, FaceDetector};
 use unshear::filters::{EyeFilters, FilterType};
 use unshear::imageio::{self, WriteOptions};
+use unshear::landmarks::LandmarkNet;
 use unshear::pipeline::FallbackDetector;
 use unshear::pipeline::{CorrectOptions, ImageReport, Region};
 use unshear::{Shear, Unshear};
@@ -78,11 +79,19 @@ fn load_models(m: &ModelArgs) -> Result<Unshear> {
         None => Cascade::frontal_face_alt2(),
     };
     let min_face = m.min_face.unwrap_or(0);
+    let defaults = DetectorParams::default();
+    if let Some(f) = m.scale_factor {
+        if !(f.is_finite() && f > 1.0 && f <= 2.0) {
+            usage_error("--scale-factor must be above 1 and at most 2");
+        }
+    }
     let detector = FaceDetector::new(
         cascade,
         DetectorParams {
             min_size: (min_face, min_face),
-            ..DetectorParams::default()
+            min_neighbors: m.min_neighbors.unwrap_or(defaults.min_neighbors),
+            scale_factor: m.scale_factor.unwrap_or(defaults.scale_factor),
+            ..defaults
         },
     );
     let filters = match &m.filters {
@@ -96,6 +105,19 @@ fn load_models(m: &ModelArgs) -> Result<Unshear> {
         }
     };
     let mut unshear = Unshear::new(detector, filters);
+    let network = match &m.network {
+        Some(p) => {
+            let bytes =
+                std::fs::read(p).with_context(|| format!("reading network {}", p.display()))?;
+            LandmarkNet::from_bytes(&bytes)
+                .with_context(|| format!("loading network {}", p.display()))?
+        }
+        None => LandmarkNet::embedded().context("loading the built-in landmark network")?,
+    };
+    unshear.set_network(Some(network));
+    if let Some(locator) = m.locator {
+        unshear.set_locator(locator.into());
+    }
     unshear.set_refinements(m.refine);
     if !(0.0..=1.0).contains(&m.min_confidence) {
         bail!("--min-confidence {} is outside 0 to 1", m.min_confidence);
@@ -115,6 +137,7 @@ fn load_models(m: &ModelArgs) -> Result<Unshear> {
     if m.no_roll_search {
         unshear.set_roll_hypotheses(&[]);
     }
+    unshear.set_search_every_view(m.search_every_view);
     if m.no_shear_search {
         unshear.set_shear_hypotheses(&[]);
         unshear.set_roll_hypotheses(&[]);

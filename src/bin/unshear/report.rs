@@ -1,7 +1,8 @@
 //! The `--json` line for one input, in the documented shape:
 //! `{"file": ..., "k": number|null, "faces": [{"box": [x, y, w, h], "right_eye": [x, y],
-//! "left_eye": [x, y], "right_nostril": [x, y], "left_nostril": [x, y], "mouth": [x, y]|null,
-//! "k": number|null, "k_measured": number, "roll": number, "confidence": number}]}` plus
+//! "left_eye": [x, y], "right_nostril": [x, y], "left_nostril": [x, y], "nose": [x, y]|null,
+//! "mouth": [x, y]|null, "k": number|null, "k_measured": number, "roll": number,
+//! "confidence": number}]}` plus
 //! `"error": "..."` when the input failed. A face's `k` is null when its estimate was refused for
 //! low confidence; `k_measured` is what was measured all the same; `roll` is in degrees.
 
@@ -17,6 +18,7 @@ pub struct JsonFace {
     left_eye: [f64; 2],
     right_nostril: [f64; 2],
     left_nostril: [f64; 2],
+    nose: Option<[f64; 2]>,
     mouth: Option<[f64; 2]>,
     k: Option<f64>,
     k_measured: f64,
@@ -94,6 +96,7 @@ pub fn face(f: &FaceReport) -> JsonFace {
         left_eye: pt(f.left_eye),
         right_nostril: pt(f.right_nostril),
         left_nostril: pt(f.left_nostril),
+        nose: f.nose_tip.map(pt),
         mouth: f.mouth.map(pt),
         k: f.k.map(r4),
         k_measured: r4(f.k_measured),
@@ -143,6 +146,11 @@ mod tests {
                 roll_degrees: w[6],
                 confidence: v[13],
                 psr: [v[14], v[15], w[0], w[1], w[2]],
+                locator: unshear::pipeline::Locator::Filters,
+                k_network: None,
+                k_points: None,
+                spread: None,
+                face_score: None,
             })
     }
 

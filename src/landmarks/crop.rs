@@ -1,0 +1,367 @@
+//! The square crop the landmark network sees: a face resampled through an affine frame that
+//! may remove a shear and a roll, so that the network is shown a nearly upright, unsheared face
+//! once the first estimate is known.
+//!
+//! A crop pixel `p` (pixel centres at integers, the crop's centre at `((N - 1) / 2, (N - 1) / 2)`)
+//! shows the image point `centre + scale * S(k) R(roll) (p - crop centre)`, where
+//! `S(k) = [[1, k], [0, 1]]` is this crate's shear ([`crate::geometry::Shear`]) and `R` turns
+//! clockwise on screen (x right, y down) for a positive roll, as
+//! [`crate::features::NormalizedFace::rotated`] does. A face sheared by `k` and tilted by `roll`
+//! in the image therefore appears upright and unsheared in a crop made with that `k` and `roll`.
+
+use image::GrayImage;
+
+use crate::geometry::{Point, Rect};
+use crate::resample::{bilinear_clamped, resample};
+
+/// The affine map from crop pixels to image pixels (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CropFrame {
+    /// The image point the crop's centre shows.
+    pub centre: Point,
+    /// Image pixels per crop pixel.
+    pub scale: f64,
+    /// The shear the crop removes (pivot: the crop's centre).
+    pub k: f64,
+    /// The roll the crop removes, radians (positive: the head turned clockwise on screen).
+    pub roll: f64,
+    /// Side of the crop, pixels.
+    pub size: usize,
+}
+
+impl CropFrame {
+    /// The linear part `scale * S(k) R(roll)`, row-major.
+    fn linear(&self) -> [f64; 4] {
+        let (s, c) = self.roll.sin_cos();
+        let m = self.scale;
+        [m * (c + self.k * s), m * (-s + self.k * c), m * s, m * c]
+    }
+
+    /// The crop's own centre, in crop pixels.
+    pub fn crop_centre(&self) -> f64 {
+        (self.size as f64 - 1.0) / 2.0
+    }
+
+    /// The image point a crop point shows.
+    pub fn to_image(&self, p: Point) -> Point {
+        let [a, b, c, d] = self.linear();
+        let o = self.crop_centre();
+        let (u, v) = (p.x - o, p.y - o);
+        Point::new(self.centre.x + a * u + b * v, self.centre.y + c * u + d * v)
+    }
+
+    /// The crop point that shows an image point.
+    pub fn from_image(&self, q: Point) -> Point {
+        let [a, b, c, d] = self.linear();
+        let det = a * d - b * c;
+        let (x, y) = (q.x - self.centre.x, q.y - self.centre.y);
+        let o = self.crop_centre();
+        Point::new(o + (d * x - b * y) / det, o + (-c * x + a * y) / det)
+    }
+
+    /// The image-axis-aligned box holding every pixel the crop shows.
+    pub fn footprint(&self) -> Rect {
+        let n = self.size as f64 - 1.0;
+        let corners =
+            [(0.0, 0.0), (n, 0.0), (0.0, n), (n, n)].map(|(u, v)| self.to_image(Point::new(u, v)));
+        let fold = |f: fn(f64, f64) -> f64, init: f64, pick: fn(&Point) -> f64| {
+            corners.iter().map(pick).fold(init, f)
+        };
+        let (x0, x1) = (
+            fold(f64::min, f64::INFINITY, |p| p.x),
+            fold(f64::max, f64::NEG_INFINITY, |p| p.x),
+        );
+        let (y0, y1) = (
+            fold(f64::min, f64::INFINITY, |p| p.y),
+            fold(f64::max, f64::NEG_INFINITY, |p| p.y),
+        );
+        Rect::new(x0, y0, x1 - x0, y1 - y0)
+    }
+
+    /// Whether every number of the frame is finite and its scale positive (a frame built from a
+    /// degenerate box or a runaway estimate is not rendered).
+    pub fn is_valid(&self) -> bool {
+        [self.centre.x, self.centre.y, self.scale, self.k, self.roll]
+            .iter()
+            .all(|v| v.is_finite())
+            && self.scale > 0.0
+            && self.size > 0
+    }
+
+    /// Renders the crop from `gray`: grey levels 0-255 as `f32`, row-major, `size * size`.
+    ///
+    /// Each crop pixel is the mean of `m x m` bilinear reads spread over it (`m` the scale
+    /// rounded up, at most [`MAX_SUPERSAMPLING`]), so the anti-aliasing blur is a box of one crop
+    /// pixel in the crop's own frame: the same for a sheared face as for an upright one. (A
+    /// blur in the image's axes, such as resampling the image first and reading it along the
+    /// sheared rows, is itself sheared in the crop's frame, and a network trained on upright
+    /// photos learns that slant as part of the face's shear: with such crops the estimate
+    /// followed a synthetic shear about 1.5% short.) Faces larger than [`MAX_SUPERSAMPLING`]
+    /// image pixels per crop pixel are first reduced by a whole factor (a blur in the image's
+    /// axes, but of at most about a fifth of a crop pixel). Outside the image the
+    /// edge is replicated. `None` for an invalid frame or a footprint too large to be a face
+    /// (more than 16 times the image's size in either direction).
+    pub fn render(&self, gray: &GrayImage) -> Option<Vec<f32>> {
+        if !self.is_valid() || gray.width() == 0 || gray.height() == 0 {
+            return None;
+        }
+        let area = self.footprint();
+        let (iw, ih) = (f64::from(gray.width()), f64::from(gray.height()));
+        if area.width > 16.0 * iw + 16.0 * self.size as f64
+            || area.height > 16.0 * ih + 16.0 * self.size as f64
+        {
+            return None;
+        }
+        // Image pixels reduced into one source sample before supersampling (1: none).
+        let block = (self.scale / MAX_SUPERSAMPLING as f64).ceil().max(1.0);
+        // Source sample 0 sits on a whole image pixel, so that with `block` 1 the source is
+        // the image's own pixels, not an interpolation of them.
+        let (x0, y0) = (
+            (area.x / block).floor() * block - 2.0 * block,
+            (area.y / block).floor() * block - 2.0 * block,
+        );
+        let sw = ((area.width + 4.0 * block) / block).ceil() as usize + 1;
+        let sh = ((area.height + 4.0 * block) / block).ceil() as usize + 1;
+        // The footprint at one sample per `block` image pixels: reduced with `resample`'s
+        // area-weighted triangle (block > 1), or the image's own pixels (block = 1).
+        let source = resample(gray, x0, y0, block, sw, sh);
+        let m = ((self.scale / block).ceil() as usize).clamp(1, MAX_SUPERSAMPLING);
+        let [a, b, c, d] = self.linear();
+        // One crop pixel's steps along its row and column, in source samples.
+        let (ax, ay, bx, by) = (a / block, c / block, b / block, d / block);
+        let inv = 1.0 / (m * m) as f32;
+        let offsets: Vec<f64> = (0..m).map(|i| (i as f64 + 0.5) / m as f64 - 0.5).collect();
+        let mut out = vec![0f32; self.size * self.size];
+        for (j, row) in out.chunks_exact_mut(self.size).enumerate() {
+            let first = self.to_image(Point::new(0.0, j as f64));
+            let (sx, sy) = ((first.x - x0) / block, (first.y - y0) / block);
+            for (i, o) in row.iter_mut().enumerate() {
+                let i = i as f64;
+                let (px, py) = (sx + ax * i, sy + ay * i);
+                let mut total = 0.0f32;
+                for &v in &offsets {
+                    for &u in &offsets {
+                        total += bilinear_clamped(
+                            &source,
+                            sw,
+                            sh,
+                            px + ax * u + bx * v,
+                            py + ay * u + by * v,
+                        );
+                    }
+                }
+                *o = total * inv;
+            }
+        }
+        Some(out)
+    }
+}
+
+/// The most reads per crop pixel and axis in [`CropFrame::render`] (25 in all for a face
+/// shrunk 5 times or more).
+pub const MAX_SUPERSAMPLING: usize = 5;
+
+/// The shear seen in a crop made with `roll` from a face sheared by `residual` more than the
+/// crop removes: the shear factor of the upper-triangular part of `R(-roll) S(residual)` (its
+/// RQ decomposition), which is `residual` itself when `roll` is 0. This is what the network's
+/// shear output is trained to read; [`residual_from_crop_shear`] inverts it.
+pub fn crop_shear(residual: f64, roll: f64) -> f64 {
+    let (s, c) = roll.sin_cos();
+    // R(-roll) S(d) = [[c, c d + s], [-s, c - s d]]; the shear of its RQ decomposition is
+    // (row1 . row2) / |row2|^2.
+    let d = residual;
+    let (r1, r2) = ((c, c * d + s), (-s, c - s * d));
+    (r1.0 * r2.0 + r1.1 * r2.1) / (r2.0 * r2.0 + r2.1 * r2.1)
+}
+
+/// The residual shear `d` (image frame) for which [`crop_shear`]`(d, roll)` equals `kappa`, the
+/// root nearest `kappa` (the branch through `d = kappa` at roll 0); `None` when there is none.
+pub fn residual_from_crop_shear(kappa: f64, roll: f64) -> Option<f64> {
+    if roll == 0.0 {
+        return Some(kappa);
+    }
+    let (s, c) = roll.sin_cos();
+    // kappa (s^2 + (c - s d)^2) = d (c^2 - s^2) - s c d^2, a quadratic in d:
+    // d^2 (kappa s^2 + s c) + d (-2 kappa s c - (c^2 - s^2)) + kappa (s^2 + c^2) = 0.
+    let qa = kappa * s * s + s * c;
+    let qb = -2.0 * kappa * s * c - (c * c - s * s);
+    let qc = kappa;
+    if qa.abs() < 1e-12 {
+        return (qb != 0.0).then(|| -qc / qb);
+    }
+    let disc = qb * qb - 4.0 * qa * qc;
+    if disc < 0.0 {
+        return None;
+    }
+    let q = -0.5 * (qb + qb.signum() * disc.sqrt());
+    let roots = [q / qa, if q != 0.0 { qc / q } else { f64::INFINITY }];
+    roots
+        .into_iter()
+        .filter(|r| r.is_finite())
+        .min_by(|a, b| (a - kappa).abs().total_cmp(&(b - kappa).abs()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn frame(k: f64, roll_degrees: f64, scale: f64) -> CropFrame {
+        CropFrame {
+            centre: Point::new(70.0, 60.0),
+            scale,
+            k,
+            roll: roll_degrees.to_radians(),
+            size: 32,
+        }
+    }
+
+    #[test]
+    fn image_and_crop_points_round_trip() {
+        for f in [
+            frame(0.0, 0.0, 1.0),
+            frame(0.3, 12.0, 2.5),
+            frame(-0.45, -20.0, 0.7),
+        ] {
+            for p in [
+                Point::new(0.0, 0.0),
+                Point::new(31.0, 5.5),
+                Point::new(-3.0, 40.0),
+            ] {
+                let back = f.from_image(f.to_image(p));
+                assert!(p.distance(back) < 1e-9, "{f:?} {p:?} {back:?}");
+            }
+            // The crop's centre shows the frame's centre.
+            let c = f.crop_centre();
+            assert!(f.to_image(Point::new(c, c)).distance(f.centre) < 1e-12);
+        }
+    }
+
+    #[test]
+    fn a_sheared_and_turned_frame_maps_rows_as_the_shear_and_roll_do() {
+        // No roll: one crop row down moves the image point by (k, 1) * scale.
+        let f = frame(0.25, 0.0, 2.0);
+        let (a, b) = (
+            f.to_image(Point::new(3.0, 4.0)),
+            f.to_image(Point::new(3.0, 5.0)),
+        );
+        assert!((b.x - a.x - 0.5).abs() < 1e-12 && (b.y - a.y - 2.0).abs() < 1e-12);
+        // No shear: a crop row is the image turned clockwise by the roll.
+        let f = frame(0.0, 30.0, 1.0);
+        let (a, b) = (
+            f.to_image(Point::new(3.0, 4.0)),
+            f.to_image(Point::new(4.0, 4.0)),
+        );
+        let angle = (b.y - a.y).atan2(b.x - a.x).to_degrees();
+        assert!((angle - 30.0).abs() < 1e-9, "{angle}");
+    }
+
+    #[test]
+    fn rendering_reads_the_image_at_the_mapped_points() {
+        // A linear ramp is reproduced exactly by bilinear reads at unit scale.
+        let ramp = |x: f64, y: f64| 0.5 * x + 0.25 * y;
+        let img = GrayImage::from_fn(200, 200, |x, y| {
+            image::Luma([ramp(f64::from(x), f64::from(y)) as u8])
+        });
+        let f = CropFrame {
+            centre: Point::new(100.0, 90.0),
+            scale: 1.0,
+            k: 0.2,
+            roll: 0.15,
+            size: 24,
+        };
+        let crop = f.render(&img).expect("valid frame");
+        for (n, &got) in crop.iter().enumerate() {
+            let p = f.to_image(Point::new((n % 24) as f64, (n / 24) as f64));
+            assert!(
+                (f64::from(got) - ramp(p.x, p.y)).abs() < 1.0,
+                "pixel {n}: {got} against {}",
+                ramp(p.x, p.y)
+            );
+        }
+    }
+
+    #[test]
+    fn shrinking_crops_average_instead_of_aliasing() {
+        // A one-pixel checkerboard shrunk 4x comes out flat grey.
+        let img = GrayImage::from_fn(256, 256, |x, y| {
+            image::Luma([if (x + y) % 2 == 0 { 0 } else { 200 }])
+        });
+        let f = CropFrame {
+            centre: Point::new(128.0, 128.0),
+            scale: 4.0,
+            k: 0.1,
+            roll: 0.0,
+            size: 16,
+        };
+        for v in f.render(&img).expect("valid frame") {
+            assert!((v - 100.0).abs() < 10.0, "{v}");
+        }
+    }
+
+    #[test]
+    fn a_crop_that_removes_the_shear_shows_the_unsheared_image() {
+        // A smooth pattern with detail near the crop's resolution, and the same pattern sheared
+        // by k about row `pivot` (what a rolling shutter records).
+        let pattern = |x: f64, y: f64| {
+            100.0 + 50.0 * (x / 3.1).sin() * (y / 4.3).cos() + 40.0 * ((x + 2.0 * y) / 7.0).sin()
+        };
+        let (k, pivot) = (0.4, 150.0);
+        let image = |shear: f64| {
+            GrayImage::from_fn(400, 300, |x, y| {
+                let (x, y) = (f64::from(x), f64::from(y));
+                image::Luma([pattern(x - shear * (y - pivot), y).round() as u8])
+            })
+        };
+        let (upright, sheared) = (image(0.0), image(k));
+        let at = Point::new(200.0, 130.0);
+        let plain = CropFrame {
+            centre: at,
+            scale: 2.5,
+            k: 0.0,
+            roll: 0.0,
+            size: 48,
+        };
+        let unsheared = CropFrame {
+            centre: Point::new(at.x + k * (at.y - pivot), at.y),
+            k,
+            ..plain
+        };
+        let a = plain.render(&upright).expect("valid frame");
+        let b = unsheared.render(&sheared).expect("valid frame");
+        let mean_difference =
+            a.iter().zip(&b).map(|(p, q)| (p - q).abs()).sum::<f32>() / a.len() as f32;
+        // Measured: 0.16 grey levels (the source rounded to whole levels, bilinear reads on
+        // different image pixels). A crop that did not remove the shear differs by tens of
+        // levels on this pattern, whose contrast over one crop pixel is about 40.
+        assert!(mean_difference < 0.5, "mean difference {mean_difference}");
+    }
+
+    #[test]
+    fn degenerate_frames_are_not_rendered() {
+        let img = GrayImage::new(10, 10);
+        let mut f = frame(0.0, 0.0, 1.0);
+        f.scale = f64::NAN;
+        assert!(f.render(&img).is_none());
+        f.scale = 0.0;
+        assert!(f.render(&img).is_none());
+        f.scale = 1e6;
+        assert!(f.render(&img).is_none());
+    }
+
+    #[test]
+    fn crop_shear_is_the_residual_without_roll_and_inverts_with_it() {
+        for d in [-0.5, -0.2, 0.0, 0.1, 0.4] {
+            assert!((crop_shear(d, 0.0) - d).abs() < 1e-12);
+            for roll in [-0.4f64, -0.1, 0.2, 0.35] {
+                let kappa = crop_shear(d, roll);
+                let back = residual_from_crop_shear(kappa, roll).expect("invertible");
+                assert!((back - d).abs() < 1e-9, "d {d} roll {roll}: {back}");
+            }
+        }
+        // The crop's shear of a turned, sheared face is what the crop frame shows: the eye
+        // line stays level under a pure shear, so with roll it is the RQ shear factor.
+        let (d, roll) = (0.3f64, 0.2f64);
+        let kappa = crop_shear(d, roll);
+        assert!(kappa > 0.2 && kappa < 0.4, "{kappa}");
+    }
+}

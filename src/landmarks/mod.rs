@@ -1,0 +1,279 @@
+//! Facial landmarks (both eye centres, the nose point and the mouth centre) located by a small
+//! convolutional network in a crop of the face, and the shear read off the same crop.
+//!
+//! The network is trained by this project (`scripts/train_landmarks.py`, on crops that
+//! [`training::export_crops`] cuts from the Caltech development faces) with the crops sheared
+//! and turned at random, so that it has no preference for an unsheared face: a landmark model
+//! trained on upright faces only pulls its points back towards an upright face and under-reads
+//! the shear. Where the crop comes from is described by a [`CropFrame`]; the same frame maps
+//! the points back to the image.
+
+pub mod crop;
+pub mod net;
+pub mod training;
+
+pub use crop::{crop_shear, residual_from_crop_shear, CropFrame};
+pub use net::{LandmarkNet, NetOutput, Workspace};
+
+use crate::estimate::{shear_and_roll, yaw_corrected};
+use crate::geometry::Point;
+
+/// Side of the crop the network sees, pixels.
+pub const CROP_SIZE: usize = 96;
+
+/// How many eye distances the crop's side spans: from above the brows to below the chin (the
+/// eyes' midpoint sits [`EYES_ABOVE_CENTRE`] above the crop's centre, the mouth about 1.1 eye
+/// distances below the eyes and the chin about 1.6).
+pub const CROP_EYE_DISTANCES: f64 = 3.3;
+
+/// How far above the crop's centre the eyes' midpoint sits, in eye distances.
+pub const EYES_ABOVE_CENTRE: f64 = 0.35;
+
+/// The crop frame that shows a face whose eyes' midpoint is at `eyes_midpoint` (image pixels)
+/// and whose eyes are `eye_distance` apart in the upright, unsheared face, with the shear `k`
+/// and the roll `roll` (radians) removed, `size` pixels square: the eyes' midpoint lands
+/// [`EYES_ABOVE_CENTRE`] eye distances above the crop's centre, and the eyes
+/// `size / CROP_EYE_DISTANCES` crop pixels apart.
+pub fn frame_around_eyes(
+    eyes_midpoint: Point,
+    eye_distance: f64,
+    k: f64,
+    roll: f64,
+    size: usize,
+) -> CropFrame {
+    frame_with_geometry(
+        eyes_midpoint,
+        eye_distance,
+        k,
+        roll,
+        (size, CROP_EYE_DISTANCES, EYES_ABOVE_CENTRE),
+    )
+}
+
+/// [`frame_around_eyes`] for a crop geometry of (side, eye distances across it, eyes'
+/// midpoint above its centre in eye distances).
+fn frame_with_geometry(
+    eyes_midpoint: Point,
+    eye_distance: f64,
+    k: f64,
+    roll: f64,
+    (size, eye_distances, eyes_above_centre): (usize, f64, f64),
+) -> CropFrame {
+    let mut frame = CropFrame {
+        centre: eyes_midpoint,
+        scale: eye_distance * eye_distances / size as f64,
+        k,
+        roll,
+        size,
+    };
+    // Move the centre so that the crop point of the eyes shows `eyes_midpoint`.
+    let o = frame.crop_centre();
+    let eyes_in_crop = Point::new(o, o - eyes_above_centre * size as f64 / eye_distances);
+    let shown = frame.to_image(eyes_in_crop);
+    frame.centre = Point::new(
+        2.0 * eyes_midpoint.x - shown.x,
+        2.0 * eyes_midpoint.y - shown.y,
+    );
+    frame
+}
+
+/// How far the mouth axis's shear is extrapolated away from the nose axis's to cancel yaw, for
+/// the network's points (see [`crate::estimate::yaw_corrected`]).
+pub const NETWORK_YAW_EXTRAPOLATION: f64 = 0.3;
+
+/// The weight of the network's own reading of the shear in the estimate; the rest is the shear
+/// the located points give ([`LocatedFace::k_points`]).
+pub const NETWORK_SHEAR_WEIGHT: f64 = 1.0;
+
+/// Most crops per face ([`locate`]).
+pub const MAX_PASSES: usize = 8;
+
+/// Change of the estimated shear below which [`locate`] stops re-cropping.
+pub const SHEAR_TOLERANCE: f64 = 0.001;
+
+/// Change of the estimated roll (radians, about 0.6 degrees) below which [`locate`] stops.
+pub const ROLL_TOLERANCE: f64 = 0.01;
+
+/// The largest shear [`locate`] will crop with (as `features::MAX_SHEAR`).
+pub const MAX_CROP_SHEAR: f64 = 0.8;
+
+/// What the network found in one face, image pixels.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LocatedFace {
+    /// Subject's right eye centre (image left).
+    pub right_eye: Point,
+    /// Subject's left eye centre (image right).
+    pub left_eye: Point,
+    /// The nose point (Caltech's nose annotation: the lower nose).
+    pub nose: Point,
+    /// The mouth centre.
+    pub mouth: Point,
+    /// The shear the points give: the mouth axis's shear-and-roll reading extrapolated away from
+    /// the nose axis's by [`NETWORK_YAW_EXTRAPOLATION`]; `None` when the points allow none.
+    pub k_points: Option<f64>,
+    /// The nose axis's own reading.
+    pub k_nose: Option<f64>,
+    /// The mouth axis's own reading.
+    pub k_mouth: Option<f64>,
+    /// The network's own reading of the shear, in the image's frame (`k_points` where the
+    /// crop's roll leaves no image shear for that reading, near 45 degrees).
+    pub k_network: f64,
+    /// The estimate: [`NETWORK_SHEAR_WEIGHT`] of `k_network` and the rest `k_points`
+    /// (`k_network` alone when the points give none).
+    pub k: f64,
+    /// The head's roll under that shear, radians (as [`crate::estimate::ShearRoll::roll`]).
+    pub roll: f64,
+    /// Each heatmap's spread (right eye, left eye, nose, mouth) in eye distances of the crop.
+    pub spread: [f64; 4],
+    /// The network's face score on the last crop: the chance that it shows a face at all.
+    pub face: f64,
+    /// Crops made.
+    pub passes: usize,
+    /// The frame of the last crop.
+    pub frame: CropFrame,
+}
+
+impl LandmarkNet {
+    /// The crop frame of this network's geometry around eyes at `eyes_midpoint`, `eye_distance`
+    /// apart in the upright face, with `k` and `roll` removed (see [`frame_around_eyes`]).
+    pub fn frame(&self, eyes_midpoint: Point, eye_distance: f64, k: f64, roll: f64) -> CropFrame {
+        frame_with_geometry(
+            eyes_midpoint,
+            eye_distance,
+            k,
+            roll,
+            (
+                self.size(),
+                self.crop_eye_distances(),
+                self.eyes_above_centre(),
+            ),
+        )
+    }
+}
+
+/// The distance between two image points in the face de-sheared by `k` (turning it upright
+/// does not change distances): the eye distance of the upright face.
+fn upright_distance(a: Point, b: Point, k: f64) -> f64 {
+    let (dx, dy) = (b.x - a.x - k * (b.y - a.y), b.y - a.y);
+    dx.hypot(dy).max(f64::MIN_POSITIVE)
+}
+
+/// Locates the landmarks of the face that `start` frames (from a detector's box, or a previous
+/// estimate) and estimates its shear: the network reads a crop, the shear and roll are
+/// estimated from what it found, and the face is cropped again around the eyes found with
+/// that shear and roll removed, until the estimate stops changing ([`SHEAR_TOLERANCE`],
+/// [`ROLL_TOLERANCE`]) or after [`MAX_PASSES`] crops. The network then sees a nearly upright,
+/// unsheared face, the kind it reads best. `None` when a crop cannot be made or the network's
+/// reading is not finite.
+pub fn locate(
+    net: &LandmarkNet,
+    gray: &image::GrayImage,
+    start: CropFrame,
+    ws: &mut Workspace,
+) -> Option<LocatedFace> {
+    let mut frame = start;
+    let mut found = None;
+    for pass in 1..=MAX_PASSES {
+        let crop = frame.render(gray)?;
+        let out = net.run(&crop, ws);
+        let face = read_face(net, &out, frame, pass)?;
+        let converged = (face.k - frame.k).abs() < SHEAR_TOLERANCE
+            && (face.roll - frame.roll).abs() < ROLL_TOLERANCE;
+        found = Some(face);
+        if converged {
+            break;
+        }
+        let distance = upright_distance(face.right_eye, face.left_eye, face.k);
+        let next = net.frame(
+            face.right_eye.midpoint(face.left_eye),
+            distance,
+            face.k.clamp(-MAX_CROP_SHEAR, MAX_CROP_SHEAR),
+            face.roll,
+        );
+        if !next.is_valid() {
+            break;
+        }
+        frame = next;
+    }
+    found
+}
+
+/// The face the network's output on the crop of `frame` describes.
+fn read_face(
+    net: &LandmarkNet,
+    out: &NetOutput,
+    frame: CropFrame,
+    passes: usize,
+) -> Option<LocatedFace> {
+    let [right_eye, left_eye, nose, mouth] = out.points.map(|p| frame.to_image(p));
+    // Near 45 degrees of roll an image shear barely changes the crop's own shear, and some
+    // readings have no image shear at all; the points' shear stands in there.
+    let residual = residual_from_crop_shear(out.shear, frame.roll);
+    let eye_line = Point::new(left_eye.x - right_eye.x, left_eye.y - right_eye.y);
+    let mid = right_eye.midpoint(left_eye);
+    let axis = |p: Point| Point::new(p.x - mid.x, p.y - mid.y);
+    let k_nose = shear_and_roll(eye_line, axis(nose)).map(|s| s.k);
+    let k_mouth = shear_and_roll(eye_line, axis(mouth)).map(|s| s.k);
+    let k_points = match (k_nose, k_mouth) {
+        (Some(n), Some(m)) => Some(yaw_corrected(n, m, NETWORK_YAW_EXTRAPOLATION)),
+        (None, Some(m)) => Some(m),
+        (Some(n), None) => Some(n),
+        (None, None) => None,
+    };
+    let k_network = match residual {
+        Some(r) => frame.k + r,
+        None => k_points?,
+    };
+    if !k_network.is_finite() {
+        return None;
+    }
+    let k = match k_points {
+        Some(p) => NETWORK_SHEAR_WEIGHT * k_network + (1.0 - NETWORK_SHEAR_WEIGHT) * p,
+        None => k_network,
+    };
+    let roll = eye_line.y.atan2(eye_line.x - k * eye_line.y);
+    let unit = net.size() as f64 / net.crop_eye_distances();
+    Some(LocatedFace {
+        right_eye,
+        left_eye,
+        nose,
+        mouth,
+        k_points,
+        k_nose,
+        k_mouth,
+        k_network,
+        k,
+        roll,
+        spread: out.spread.map(|s| s / unit),
+        face: out.face,
+        passes,
+        frame,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_eyes_land_where_the_frame_puts_them() {
+        for (k, roll) in [(0.0, 0.0), (0.3, 0.0), (-0.2, 0.25)] {
+            let f = frame_around_eyes(Point::new(120.0, 80.0), 40.0, k, roll, 96);
+            let o = f.crop_centre();
+            let eyes = f.from_image(Point::new(120.0, 80.0));
+            let expected_y = o - EYES_ABOVE_CENTRE * 96.0 / CROP_EYE_DISTANCES;
+            assert!((eyes.x - o).abs() < 1e-9 && (eyes.y - expected_y).abs() < 1e-9);
+            // An upright face's eyes, turned and sheared as the frame says, are
+            // size / CROP_EYE_DISTANCES apart in the crop.
+            let (s, c) = roll.sin_cos();
+            let turned = |dx: f64| Point::new(120.0 + c * dx, 80.0 + s * dx);
+            let sheared = |p: Point| Point::new(p.x + k * (p.y - 80.0), p.y);
+            let (r, l) = (
+                f.from_image(sheared(turned(-20.0))),
+                f.from_image(sheared(turned(20.0))),
+            );
+            assert!((r.distance(l) - 96.0 / CROP_EYE_DISTANCES).abs() < 1e-9);
+            assert!((r.y - l.y).abs() < 1e-9, "level in the crop");
+        }
+    }
+}

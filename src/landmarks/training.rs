@@ -1,0 +1,541 @@
+//! Training crops for the landmark network: each annotated face cut many times through a crop
+//! frame whose placement, scale, shear and roll are drawn at random around what the pipeline
+//! will ask for, with the annotated points and the crop's shear as labels.
+//!
+//! The crops are cut with the same code the run-time locator uses ([`CropFrame::render`]), so
+//! the network is trained on exactly what it will see. The distributions:
+//!
+//! * **placement**: the frame is built around the annotated eyes ([`frame_around_eyes`]) with
+//!   the eyes' midpoint moved by a normal offset of [`CENTRE_JITTER`] eye distances (std) each
+//!   way, and the eye distance scaled by `exp(N(0, SCALE_JITTER))`: the first search starts
+//!   from a detector's box, whose eyes lie about 0.07-0.09 eye distances (std) from where the
+//!   box predicts them and whose size varies by about 9% (`features::RIGHT_EYE_IN_BOX`,
+//!   `features::EYE_DISTANCE_PER_BOX_WIDTH`); later searches start from located eyes;
+//! * **shear**: half of the crops are cut from the photo sheared as a rolling shutter would
+//!   shear it (by [`crate::warp::apply_shear`], by a shear drawn uniformly from
+//!   `+-PHOTO_SHEAR` per image), half from the photo as it is; the crop then removes that shear
+//!   less a residual, which the face shows in the crop: drawn uniformly from `+-WIDE_SHEAR`
+//!   for half of the crops (the first search, in a view up to about 0.3 from the face's
+//!   shear), with std [`NARROW_SHEAR`] for the others (later searches, in the view the
+//!   estimate de-sheared). Shearing the photo itself teaches the network what a sheared
+//!   image's pixels look like after the crop removes the shear (its pixel grid and blur
+//!   stay in the image's axes), as it will see them at run time;
+//! * **roll**: half of the crops are not turned (the first search: the head's own roll shows),
+//!   half are turned by the head's roll (the eye line's angle) plus a normal error of
+//!   [`ROLL_JITTER`] radians.
+//!
+//! Mirror images are left to the trainer (the crop is symmetric about its vertical mid-line, so
+//! flipping a crop is the crop of the flipped photo).
+//!
+//! Deterministic: each face draws from its own generator, seeded from its index in the data
+//! set, and the crops are written in data-set order.
+
+use std::io::Write;
+
+use rayon::prelude::*;
+
+use super::{crop_shear, frame_around_eyes};
+use crate::dataset::AnnotatedFace;
+use crate::error::{Error, Result};
+use crate::geometry::{Point, Shear};
+use crate::imageio;
+use crate::train::SplitMix64;
+use crate::warp::{try_apply_shear, Canvas, Interpolation, Placement};
+
+/// Std of the eyes' midpoint's offset from where the crop expects it, eye distances, each axis.
+pub const CENTRE_JITTER: f64 = 0.08;
+/// Std of the log of the eye distance's scale error.
+pub const SCALE_JITTER: f64 = 0.09;
+/// Half-range of the residual shear of half of the crops.
+pub const WIDE_SHEAR: f64 = 0.35;
+/// Std of the residual shear of the other half.
+pub const NARROW_SHEAR: f64 = 0.05;
+/// Half-range of the shear applied to a photo's sheared copy.
+pub const PHOTO_SHEAR: f64 = 0.5;
+/// Std of the roll error of the turned crops, radians (about 3.4 degrees).
+pub const ROLL_JITTER: f64 = 0.06;
+
+/// The values stored per crop in `labels.f32` (little-endian `f32`), in this order.
+pub const LABEL_FIELDS: [&str; 13] = [
+    "right_eye_x",
+    "right_eye_y",
+    "left_eye_x",
+    "left_eye_y",
+    "nose_x",
+    "nose_y",
+    "mouth_x",
+    "mouth_y",
+    "crop_shear",
+    "crop_roll",
+    "eye_distance_px",
+    "face_index",
+    "is_face",
+];
+
+/// What to export.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExportOptions {
+    /// Side of the crops, pixels.
+    pub size: usize,
+    /// Crops per face.
+    pub per_face: usize,
+    /// Faces whose eye distance (pixels) is below this are skipped.
+    pub min_eye_distance: f64,
+    /// Faces whose eye distance is at or above this are skipped (to keep the faces an
+    /// evaluation measures out of training).
+    pub max_eye_distance: f64,
+    /// Non-face crops per photo and kind (see [`negative_samples`]; 0: none).
+    pub negatives_per_image: usize,
+    /// Seed of the generators.
+    pub seed: u64,
+}
+
+impl Default for ExportOptions {
+    fn default() -> Self {
+        Self {
+            size: super::CROP_SIZE,
+            per_face: 24,
+            min_eye_distance: 15.0,
+            max_eye_distance: 40.0,
+            negatives_per_image: 2,
+            seed: 0x6c61_6e64_6d61_726b,
+        }
+    }
+}
+
+/// What the export wrote.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ExportSummary {
+    /// Faces used.
+    pub faces: usize,
+    /// Face crops written.
+    pub crops: usize,
+    /// Non-face crops written.
+    pub negatives: usize,
+    /// Images that could not be read (skipped).
+    pub unreadable: Vec<String>,
+}
+
+/// A standard normal draw (Box-Muller).
+fn normal(rng: &mut SplitMix64) -> f64 {
+    let u1 = rng.next_f64().max(f64::MIN_POSITIVE);
+    let u2 = rng.next_f64();
+    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+}
+
+/// One crop: grey levels rounded to bytes, and its labels ([`LABEL_FIELDS`]).
+struct Sample {
+    pixels: Vec<u8>,
+    labels: [f32; LABEL_FIELDS.len()],
+}
+
+/// A photo as the crops are cut from it: the grey image, sheared by `k` (0: as it is), and
+/// where a point of the unsheared photo lies in it.
+struct Version {
+    gray: image::GrayImage,
+    k: f64,
+    shear: Shear,
+    placement: Placement,
+}
+
+impl Version {
+    fn unsheared(gray: image::GrayImage) -> Self {
+        Self {
+            gray,
+            k: 0.0,
+            shear: Shear::new(0.0, 0.0),
+            placement: Placement::default(),
+        }
+    }
+
+    /// `gray` sheared by `k` about its middle row on a canvas that keeps every pixel.
+    fn sheared(gray: &image::GrayImage, k: f64) -> Option<Self> {
+        let shear = Shear::about_middle(k, gray.height());
+        let (img, placement) = try_apply_shear(
+            &image::DynamicImage::ImageLuma8(gray.clone()),
+            shear,
+            Interpolation::Linear,
+            Canvas::Expand,
+        )
+        .ok()?;
+        Some(Self {
+            gray: img.into_luma8(),
+            k,
+            shear,
+            placement,
+        })
+    }
+
+    fn point(&self, p: Point) -> Point {
+        self.placement.from_frame(self.shear.apply(p))
+    }
+}
+
+/// The `per_face` crops of one face, each cut from one of `versions` of its photo.
+fn face_samples(
+    versions: &[Version],
+    face: &AnnotatedFace,
+    face_index: usize,
+    options: &ExportOptions,
+) -> Vec<Sample> {
+    let mut rng = SplitMix64::new(options.seed.wrapping_add(face_index as u64));
+    let distance = face.eye_distance();
+    let head_roll = (face.left_eye.y - face.right_eye.y).atan2(face.left_eye.x - face.right_eye.x);
+    let mut out = Vec::with_capacity(options.per_face);
+    for _ in 0..options.per_face {
+        let version = &versions[(rng.next_f64() * versions.len() as f64) as usize % versions.len()];
+        let (re, le) = (version.point(face.right_eye), version.point(face.left_eye));
+        let midpoint = re.midpoint(le);
+        let residual = if rng.next_f64() < 0.5 {
+            (2.0 * rng.next_f64() - 1.0) * WIDE_SHEAR
+        } else {
+            NARROW_SHEAR * normal(&mut rng)
+        };
+        // The crop removes the version's shear less the residual, which the face then shows.
+        let k = version.k - residual;
+        let roll = if rng.next_f64() < 0.5 {
+            0.0
+        } else {
+            head_roll + ROLL_JITTER * normal(&mut rng)
+        };
+        let scaled = distance * (SCALE_JITTER * normal(&mut rng)).exp();
+        // The eyes' midpoint's offset, drawn in the upright face and shown through the frame.
+        let (dx, dy) = (
+            CENTRE_JITTER * distance * normal(&mut rng),
+            CENTRE_JITTER * distance * normal(&mut rng),
+        );
+        let (s, c) = roll.sin_cos();
+        let (tx, ty) = (c * dx - s * dy, s * dx + c * dy);
+        let offset_mid = Point::new(midpoint.x + tx + k * ty, midpoint.y + ty);
+        let frame = frame_around_eyes(offset_mid, scaled, k, roll, options.size);
+        let Some(pixels) = frame.render(&version.gray) else {
+            continue;
+        };
+        let nose = face
+            .nose
+            .map_or(Point::new(f64::NAN, f64::NAN), |p| version.point(p));
+        let mouth = face
+            .mouth
+            .map_or(Point::new(f64::NAN, f64::NAN), |p| version.point(p));
+        let points = [re, le, nose, mouth].map(|p| frame.from_image(p));
+        let mut labels = [0f32; LABEL_FIELDS.len()];
+        for (i, p) in points.iter().enumerate() {
+            labels[2 * i] = p.x as f32;
+            labels[2 * i + 1] = p.y as f32;
+        }
+        labels[8] = crop_shear(residual, roll) as f32;
+        labels[9] = (head_roll - roll) as f32;
+        labels[10] = distance as f32;
+        labels[11] = face_index as f32;
+        labels[12] = 1.0;
+        out.push(Sample {
+            pixels: to_bytes(&pixels),
+            labels,
+        });
+    }
+    out
+}
+
+/// Cuts the training crops of every face of `faces` within the options' eye-distance range,
+/// and the non-face crops ([`negative_samples`]), and writes them to `out_dir`: `crops.u8` (each
+/// crop `size * size` bytes, row-major), `labels.f32` ([`LABEL_FIELDS`] per crop) and
+/// `meta.json` (the options and counts).
+///
+/// Images holding a face at or above `max_eye_distance` are skipped whole, faces of every
+/// size and background alike, so that no pixel of an image the accuracy tables measure is
+/// trained on.
+pub fn export_crops(
+    faces: Vec<AnnotatedFace>,
+    options: &ExportOptions,
+    out_dir: &std::path::Path,
+) -> Result<ExportSummary> {
+    let io_error = |path: &std::path::Path| {
+        let path = path.to_path_buf();
+        move |source| Error::Io { path, source }
+    };
+    std::fs::create_dir_all(out_dir).map_err(io_error(out_dir))?;
+    // Every face keeps its index in the data set as its seed, whatever the range asked for.
+    let indexed: Vec<(usize, AnnotatedFace)> = faces.into_iter().enumerate().collect();
+    let mut groups: std::collections::BTreeMap<std::path::PathBuf, Vec<(usize, AnnotatedFace)>> =
+        std::collections::BTreeMap::new();
+    for (i, f) in indexed {
+        groups.entry(f.image.clone()).or_default().push((i, f));
+    }
+    let groups: Vec<(std::path::PathBuf, Vec<(usize, AnnotatedFace)>)> = groups
+        .into_iter()
+        .filter(|(_, faces)| {
+            faces
+                .iter()
+                .all(|(_, f)| f.eye_distance() < options.max_eye_distance)
+        })
+        .collect();
+    let crops_path = out_dir.join("crops.u8");
+    let labels_path = out_dir.join("labels.f32");
+    let mut crops =
+        std::io::BufWriter::new(std::fs::File::create(&crops_path).map_err(io_error(&crops_path))?);
+    let mut labels = std::io::BufWriter::new(
+        std::fs::File::create(&labels_path).map_err(io_error(&labels_path))?,
+    );
+    let mut summary = ExportSummary::default();
+    let detector = crate::detect::FaceDetector::new(
+        crate::detect::Cascade::frontal_face_alt2(),
+        crate::detect::DetectorParams {
+            min_neighbors: 1,
+            min_size: (30, 30),
+            ..crate::detect::DetectorParams::default()
+        },
+    );
+    for chunk in groups.chunks(256) {
+        let cut: Vec<std::result::Result<(usize, Vec<Sample>), String>> = chunk
+            .par_iter()
+            .map(|(path, faces)| {
+                let img = imageio::read_image(path, imageio::DEFAULT_MAX_PIXELS)
+                    .map_err(|e| e.to_string())?;
+                let gray = crate::detect::to_gray_opencv(&img);
+                let first = faces.first().map_or(0, |(i, _)| *i);
+                // The sheared copy's shear, from a generator of the image's own.
+                let mut rng =
+                    SplitMix64::new(options.seed.wrapping_add(first as u64).rotate_left(17));
+                let photo_k = (2.0 * rng.next_f64() - 1.0) * PHOTO_SHEAR;
+                let mut versions = vec![];
+                if let Some(v) = Version::sheared(&gray, photo_k) {
+                    versions.push(v);
+                }
+                versions.push(Version::unsheared(gray));
+                let in_range = |f: &AnnotatedFace| {
+                    let d = f.eye_distance();
+                    d >= options.min_eye_distance && d < options.max_eye_distance
+                };
+                let mut samples: Vec<Sample> = faces
+                    .iter()
+                    .filter(|(_, f)| in_range(f))
+                    .flat_map(|(i, f)| face_samples(&versions, f, *i, options))
+                    .collect();
+                let used = faces.iter().filter(|(_, f)| in_range(f)).count();
+                let all: Vec<&AnnotatedFace> = faces.iter().map(|(_, f)| f).collect();
+                samples.extend(negative_samples(
+                    &versions, &all, &detector, &mut rng, options,
+                ));
+                Ok((used, samples))
+            })
+            .collect();
+        for ((path, _), result) in chunk.iter().zip(cut) {
+            match result {
+                Ok((used, samples)) => {
+                    summary.faces += used;
+                    for s in samples {
+                        crops.write_all(&s.pixels).map_err(io_error(&crops_path))?;
+                        for v in s.labels {
+                            labels
+                                .write_all(&v.to_le_bytes())
+                                .map_err(io_error(&labels_path))?;
+                        }
+                        if s.labels[12] > 0.5 {
+                            summary.crops += 1;
+                        } else {
+                            summary.negatives += 1;
+                        }
+                    }
+                }
+                Err(e) => summary.unreadable.push(format!("{}: {e}", path.display())),
+            }
+        }
+    }
+    crops.flush().map_err(io_error(&crops_path))?;
+    labels.flush().map_err(io_error(&labels_path))?;
+    let meta = serde_json::json!({
+        "size": options.size,
+        "per_face": options.per_face,
+        "negatives_per_image": options.negatives_per_image,
+        "min_eye_distance": options.min_eye_distance,
+        "max_eye_distance": options.max_eye_distance,
+        "seed": options.seed,
+        "faces": summary.faces,
+        "crops": summary.crops,
+        "negatives": summary.negatives,
+        "label_fields": LABEL_FIELDS,
+        "crop_eye_distances": super::CROP_EYE_DISTANCES,
+        "eyes_above_centre": super::EYES_ABOVE_CENTRE,
+    });
+    let meta_path = out_dir.join("meta.json");
+    std::fs::write(&meta_path, meta.to_string()).map_err(io_error(&meta_path))?;
+    Ok(summary)
+}
+
+/// Crops of one photo that show no annotated face, labelled as non-faces (points and shear
+/// unknown): where the detector, asked leniently (one merged hit), fires on something that is
+/// not an annotated face (the kind of box the network must turn away at run time), and boxes of
+/// random size and place that hold no annotated eye; up to `negatives_per_image` of each kind,
+/// cut from a version of the photo at random, through the frame a detection's first search
+/// uses, with a random residual shear and roll as for the faces.
+fn negative_samples(
+    versions: &[Version],
+    faces: &[&AnnotatedFace],
+    detector: &crate::detect::FaceDetector,
+    rng: &mut SplitMix64,
+    options: &ExportOptions,
+) -> Vec<Sample> {
+    let mut out = Vec::new();
+    if options.negatives_per_image == 0 {
+        return out;
+    }
+    for version in versions {
+        let eyes: Vec<Point> = faces
+            .iter()
+            .flat_map(|f| [version.point(f.right_eye), version.point(f.left_eye)])
+            .collect();
+        let clear = |b: &crate::geometry::Rect| {
+            // No annotated eye within the box grown by a quarter each way (a box half on a
+            // face is not a clean negative).
+            let g = b.scaled_about_center(1.5);
+            eyes.iter().all(|e| !g.contains(*e))
+        };
+        let (w, h) = (
+            f64::from(version.gray.width()),
+            f64::from(version.gray.height()),
+        );
+        let mut boxes: Vec<crate::geometry::Rect> = detector
+            .detect(&version.gray)
+            .into_iter()
+            .filter(|b| clear(b))
+            .take(options.negatives_per_image)
+            .collect();
+        for _ in 0..4 * options.negatives_per_image {
+            if boxes.len() >= 2 * options.negatives_per_image {
+                break;
+            }
+            let side = 30.0 + rng.next_f64() * (w.min(h) - 30.0).max(0.0);
+            let b = crate::geometry::Rect::new(
+                rng.next_f64() * (w - side).max(0.0),
+                rng.next_f64() * (h - side).max(0.0),
+                side,
+                side,
+            );
+            if side >= 30.0 && clear(&b) {
+                boxes.push(b);
+            }
+        }
+        for b in boxes {
+            let residual = (2.0 * rng.next_f64() - 1.0) * WIDE_SHEAR;
+            let roll = ROLL_JITTER * normal(rng);
+            let eyes = Point::new(
+                b.x + 0.5
+                    * (crate::features::RIGHT_EYE_IN_BOX.0 + crate::features::LEFT_EYE_IN_BOX.0)
+                    * b.width,
+                b.y + 0.5
+                    * (crate::features::RIGHT_EYE_IN_BOX.1 + crate::features::LEFT_EYE_IN_BOX.1)
+                    * b.height,
+            );
+            let frame = frame_around_eyes(
+                eyes,
+                crate::features::EYE_DISTANCE_PER_BOX_WIDTH * b.width,
+                version.k - residual,
+                roll,
+                options.size,
+            );
+            let Some(pixels) = frame.render(&version.gray) else {
+                continue;
+            };
+            let mut labels = [f32::NAN; LABEL_FIELDS.len()];
+            labels[10] = 0.0;
+            labels[11] = -1.0;
+            labels[12] = 0.0;
+            out.push(Sample {
+                pixels: to_bytes(&pixels),
+                labels,
+            });
+        }
+    }
+    out
+}
+
+/// Grey levels rounded to bytes.
+fn to_bytes(pixels: &[f32]) -> Vec<u8> {
+    pixels
+        .iter()
+        .map(|v| v.round().clamp(0.0, 255.0) as u8)
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn normal_draws_have_unit_spread() {
+        let mut rng = SplitMix64::new(7);
+        let draws: Vec<f64> = (0..20000).map(|_| normal(&mut rng)).collect();
+        let mean = draws.iter().sum::<f64>() / draws.len() as f64;
+        let var = draws.iter().map(|d| (d - mean).powi(2)).sum::<f64>() / draws.len() as f64;
+        assert!(
+            mean.abs() < 0.03 && (var - 1.0).abs() < 0.05,
+            "{mean} {var}"
+        );
+    }
+
+    #[test]
+    fn labels_are_the_annotated_points_in_the_crop() {
+        // A synthetic face: the labels must be the crop points that show the annotations.
+        let gray = image::GrayImage::from_fn(200, 200, |x, y| image::Luma([((x + y) % 256) as u8]));
+        let face = AnnotatedFace {
+            image: "synthetic".into(),
+            right_eye: Point::new(80.0, 90.0),
+            left_eye: Point::new(120.0, 92.0),
+            nose: Some(Point::new(100.0, 120.0)),
+            mouth: Some(Point::new(101.0, 135.0)),
+        };
+        let options = ExportOptions {
+            size: 48,
+            per_face: 20,
+            ..ExportOptions::default()
+        };
+        let versions = [
+            Version::unsheared(gray.clone()),
+            Version::sheared(&gray, 0.3).expect("shear"),
+        ];
+        let samples = face_samples(&versions, &face, 3, &options);
+        assert_eq!(samples.len(), 20);
+        let unit = 48.0 / super::super::CROP_EYE_DISTANCES;
+        let own = crate::estimate::shear_and_roll(Point::new(40.0, 2.0), Point::new(1.0, 44.0))
+            .expect("solvable")
+            .k;
+        for s in &samples {
+            let l = &s.labels;
+            let (re, le) = (
+                Point::new(l[0].into(), l[1].into()),
+                Point::new(l[2].into(), l[3].into()),
+            );
+            // The eyes are about a crop eye distance apart (scale jitter aside) and near the
+            // expected place.
+            let d = re.distance(le) / unit;
+            assert!(d > 0.6 && d < 1.6, "{d}");
+            assert!((re.midpoint(le).x - 23.5).abs() < 0.5 * unit);
+            // The mouth is below the eyes in every crop (rolls are small), and the points show
+            // the label's shear: solved for shear and roll (the eye line and the mouth axis
+            // perpendicular in the upright face), they give the label plus what the annotated
+            // points give in the photo (the face's own apparent shear), to 0.02: the two add
+            // exactly only without roll (a turned crop scales its axes unequally, which moves
+            // the face's own lean a little).
+            assert!(l[7] > l[1] && l[7] > l[3]);
+            let mid = re.midpoint(le);
+            let solved = crate::estimate::shear_and_roll(
+                Point::new(le.x - re.x, le.y - re.y),
+                Point::new(f64::from(l[6]) - mid.x, f64::from(l[7]) - mid.y),
+            )
+            .expect("solvable");
+            assert!(
+                (solved.k - f64::from(l[8]) - own).abs() < 0.02,
+                "points {} label {} own {own}",
+                solved.k,
+                l[8]
+            );
+            assert!(l[8].abs() <= 0.6 && (l[11] - 3.0).abs() < 1e-6);
+        }
+        // Deterministic per face index.
+        let again = face_samples(&versions, &face, 3, &options);
+        assert!(samples
+            .iter()
+            .zip(&again)
+            .all(|(a, b)| a.labels == b.labels && a.pixels == b.pixels));
+    }
+}
