@@ -189,7 +189,7 @@ def main():
     for name, w in zip(FEATURES, weights):
         print(f"  {w:+.3f}  {name}")
     print(
-        ("NetworkConfidence" if FEATURE_FN is network_features else "ConfidenceModel")
+        ("ConfidenceModel::NETWORK = ConfidenceModel" if FEATURE_FN is network_features else "ConfidenceModel")
         + " { weights: [%s], intercept: %.3f }"
         % (", ".join(f"{w:.3f}" for w in weights), intercept)
     )

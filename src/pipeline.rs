@@ -976,7 +976,7 @@ impl Unshear {
             Point::new(nostril_mid.x - mid.x, nostril_mid.y - mid.y),
         )
         .map(|r| r.k);
-        let confidence = network_confidence(&found, face_box, &NetworkConfidence::DEFAULT);
+        let confidence = network_confidence(&found, face_box, &ConfidenceModel::NETWORK);
         Some(FaceReport {
             face_box,
             right_eye: found.right_eye,
@@ -1095,6 +1095,22 @@ pub struct ConfidenceModel {
 }
 
 impl ConfidenceModel {
+    /// The logistic model's probability for `features` (0 when not finite).
+    pub fn probability(&self, features: &[f64; 7]) -> f64 {
+        let z = self.intercept
+            + features
+                .iter()
+                .zip(self.weights)
+                .map(|(x, w)| x * w)
+                .sum::<f64>();
+        let p = 1.0 / (1.0 + (-z).exp());
+        if p.is_finite() {
+            p
+        } else {
+            0.0
+        }
+    }
+
     /// The model fitted for filters of type `kind`: the peak-to-sidelobe ratios of the three
     /// filter types live on different scales, so each has its own fit (see [`confidence`]).
     pub fn for_filters(kind: FilterType) -> Self {
@@ -1167,18 +1183,7 @@ pub fn confidence(
         estimate.roll.to_degrees().abs() / 10.0,
         (ratio - EYE_DISTANCE_PER_BOX_WIDTH).abs() * 10.0,
     ];
-    let z = model.intercept
-        + features
-            .iter()
-            .zip(model.weights)
-            .map(|(x, w)| x * w)
-            .sum::<f64>();
-    let c = 1.0 / (1.0 + (-z).exp());
-    if c.is_finite() {
-        c
-    } else {
-        0.0
-    }
+    model.probability(&features)
 }
 
 /// Of detections whose boxes overlap (IoU 0.3 or more), the strongest: most detector
@@ -1221,18 +1226,8 @@ fn most_confident_of_overlapping(
 /// places.
 pub const MIN_FACE_SCORE: f64 = 0.5;
 
-/// A logistic confidence model for the landmark network's estimates: weights of
-/// [`network_confidence`]'s features, in their order, and the intercept.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct NetworkConfidence {
-    /// One weight per feature.
-    pub weights: [f64; 7],
-    /// The intercept.
-    pub intercept: f64,
-}
-
-impl NetworkConfidence {
-    /// The fitted model (see [`network_confidence`]).
+impl ConfidenceModel {
+    /// The model fitted for the landmark network (see [`network_confidence`]).
     ///
     /// Fitted by `scripts/fit_confidence.py target/d3 --fit-first 300 --locator network` on
     /// `unshear eval shear --k=0,0.4,-0.4 --min-confidence 0 --out target/d3`: 848 estimates of
@@ -1241,7 +1236,7 @@ impl NetworkConfidence {
     /// faces (1782 estimates, 98.5% within 0.10): AUC 0.762, and at the default threshold it
     /// refuses 12 good estimates and keeps 25 bad ones. The network rarely fails on a face; the
     /// face score, the other factor, is what refuses non-faces.
-    pub const DEFAULT: Self = Self {
+    pub const NETWORK: Self = Self {
         weights: [-44.117, -12.666, -46.895, -34.514, 23.092, 0.843, -0.628],
         intercept: 27.316,
     };
@@ -1260,7 +1255,7 @@ impl NetworkConfidence {
 /// 6. the roll, `|degrees| / 10`;
 /// 7. how far the located eye distance over the detector's box width is from 0.381, times 10
 ///    (a box that does not fit the eyes found: a false detection, or eyes found elsewhere).
-pub fn network_confidence(found: &LocatedFace, face_box: Rect, model: &NetworkConfidence) -> f64 {
+pub fn network_confidence(found: &LocatedFace, face_box: Rect, model: &ConfidenceModel) -> f64 {
     let ratio = found.right_eye.distance(found.left_eye) / face_box.width.max(1.0);
     let features = [
         found.spread[0].max(found.spread[1]),
@@ -1274,13 +1269,7 @@ pub fn network_confidence(found: &LocatedFace, face_box: Rect, model: &NetworkCo
         found.roll.to_degrees().abs() / 10.0,
         (ratio - EYE_DISTANCE_PER_BOX_WIDTH).abs() * 10.0,
     ];
-    let z = model.intercept
-        + features
-            .iter()
-            .zip(model.weights)
-            .map(|(x, w)| x * w)
-            .sum::<f64>();
-    let c = found.face / (1.0 + (-z).exp());
+    let c = found.face * model.probability(&features);
     if c.is_finite() {
         c
     } else {
