@@ -850,12 +850,7 @@ impl Unshear {
         start_k: f64,
         roll: f64,
     ) -> Option<FaceReport> {
-        let positive = |v: f64| v > 0.0 && v.is_finite();
-        if gray.width() == 0
-            || gray.height() == 0
-            || !positive(search_box.width)
-            || !positive(search_box.height)
-        {
+        if !can_search(gray, search_box) {
             return None;
         }
         let face = NormalizedFace::rotated(gray, search_box, roll);
@@ -933,14 +928,7 @@ impl Unshear {
         start_k: f64,
         roll: f64,
     ) -> Option<FaceReport> {
-        let positive = |v: f64| v > 0.0 && v.is_finite();
-        if gray.width() == 0
-            || gray.height() == 0
-            || !positive(face_box.width)
-            || !positive(face_box.height)
-            || !start_k.is_finite()
-            || !roll.is_finite()
-        {
+        if !can_search(gray, face_box) || !start_k.is_finite() || !roll.is_finite() {
             return None;
         }
         // Where the box predicts the eyes' midpoint, turned with the box about its centre.
@@ -1184,6 +1172,13 @@ pub fn confidence(
         (ratio - EYE_DISTANCE_PER_BOX_WIDTH).abs() * 10.0,
     ];
     model.probability(&features)
+}
+
+/// Whether a face can be searched for in `b` of `gray`: a non-empty image and a box of finite,
+/// positive size.
+fn can_search(gray: &GrayImage, b: Rect) -> bool {
+    let positive = |v: f64| v > 0.0 && v.is_finite();
+    gray.width() > 0 && gray.height() > 0 && positive(b.width) && positive(b.height)
 }
 
 /// Of detections whose boxes overlap (IoU 0.3 or more), the strongest: most detector
