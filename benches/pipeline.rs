@@ -1,14 +1,15 @@
 //! Pipeline benchmarks: the estimate for one face once it is detected (target <= 1 ms), with the
 //! landmark network (the default) and with the filters, and one forward pass of the network; a
 //! tilted head, searched again upright, separately; face detection on a 1920x1080 frame, and the whole
-//! estimate of a frame with one face and with none. Correction speed is in `benches/warp.rs`.
+//! estimate of a frame with one face and with none, with the thorough (default) and the quick
+//! face search. Correction speed is in `benches/warp.rs`.
 //!
 //! Run: `cargo bench --bench pipeline`.
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use image::imageops::FilterType;
 use unshear::landmarks::{LandmarkNet, Workspace};
-use unshear::pipeline::Locator;
+use unshear::pipeline::{FaceSearch, Locator};
 use unshear::Unshear;
 
 fn fixture() -> image::DynamicImage {
@@ -101,10 +102,20 @@ fn bench(c: &mut Criterion) {
     });
     group.finish();
 
+    // The default (thorough) search and the quick one (`--quick`).
+    let mut quick = match Unshear::with_defaults() {
+        Ok(u) => u,
+        Err(e) => panic!("models: {e}"),
+    };
+    quick.set_face_search(FaceSearch::Quick);
     let mut group = c.benchmark_group("estimate whole 1920x1080 frame");
     group.sample_size(10);
     group.bench_function("all threads", |b| b.iter(|| unshear.estimate_gray(&frame)));
-    // No face: every de-sheared and turned view is searched (15 detections in all).
+    group.bench_function("quick, all threads", |b| {
+        b.iter(|| quick.estimate_gray(&frame))
+    });
+    // No face: every de-sheared and turned view is searched (11 detections in all thoroughly,
+    // 7 quickly, whose turned views are at 12 degrees only).
     let mut state = 0x2545_f491_u32;
     let noise = image::GrayImage::from_fn(1920, 1080, |_, _| {
         state ^= state << 13;
@@ -114,6 +125,9 @@ fn bench(c: &mut Criterion) {
     });
     group.bench_function("no face, all threads", |b| {
         b.iter(|| unshear.estimate_gray(&noise))
+    });
+    group.bench_function("no face, quick, all threads", |b| {
+        b.iter(|| quick.estimate_gray(&noise))
     });
     group.finish();
 }

@@ -110,7 +110,9 @@ fn min_face_skips_smaller_boxes() {
     let dir = tempfile::tempdir().expect("temp");
     let img = distorted(dir.path(), 0.3);
     let faces_with = |min_face: &str| {
-        estimate_json(&img, &["--min-face", min_face])["faces"]
+        // The quick search's one view, as OpenCV would search it (the thorough search's
+        // merged views move the box more).
+        estimate_json(&img, &["--quick", "--min-face", min_face])["faces"]
             .as_array()
             .expect("faces")
             .iter()
@@ -159,7 +161,8 @@ fn shear_hypotheses_choose_the_views_searched() {
 }
 
 /// `--roll-hypotheses` sets the turned views: a head tilted clockwise by 45 degrees is beyond
-/// the cascade as it is and in every de-sheared view, and is found in the view turned by 45.
+/// the quick search as it is and in every de-sheared view, and is found in the view turned by
+/// 45, which the thorough search has among its own.
 /// The option's plumbing and the roll's sign are what this checks (the roll is read within 5
 /// degrees; the estimate itself is refused at this tilt, as the confidence model weighs roll).
 #[test]
@@ -178,10 +181,15 @@ fn roll_hypotheses_choose_the_turned_views() {
             .expect("faces")
             .clone()
     };
-    assert!(faces_with(&["--no-roll-search"]).is_empty());
-    let found = faces_with(&["--roll-hypotheses=45"]);
+    assert!(faces_with(&["--quick", "--no-roll-search"]).is_empty());
+    let found = faces_with(&["--quick", "--roll-hypotheses=45"]);
     assert_eq!(found.len(), 1, "{found:?}");
     let roll = found[0]["roll"].as_f64().expect("roll");
+    assert!((roll - 45.0).abs() <= 5.0, "{roll}");
+    // The thorough search (the default) turns the image by 45 degrees among its views.
+    let thorough = faces_with(&[]);
+    assert_eq!(thorough.len(), 1, "{thorough:?}");
+    let roll = thorough[0]["roll"].as_f64().expect("roll");
     assert!((roll - 45.0).abs() <= 5.0, "{roll}");
 }
 

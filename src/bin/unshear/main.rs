@@ -27,8 +27,8 @@ use unshear::detect::{Cascade, DetectorParams, FaceDetector};
 use unshear::filters::{EyeFilters, FilterType};
 use unshear::imageio::{self, WriteOptions};
 use unshear::landmarks::LandmarkNet;
-use unshear::pipeline::FallbackDetector;
 use unshear::pipeline::{CorrectOptions, ImageReport, Region};
+use unshear::pipeline::{FaceSearch, FallbackDetector};
 use unshear::{Shear, Unshear};
 
 fn main() -> ExitCode {
@@ -128,6 +128,14 @@ fn load_models(m: &ModelArgs) -> Result<Unshear> {
         }
         unshear.set_shear_hypotheses(hypotheses);
     }
+    unshear.set_face_search(if m.quick || m.no_shear_search {
+        FaceSearch::Quick
+    } else {
+        FaceSearch::Thorough
+    });
+    if m.search_every_view {
+        unshear.set_search_every_view(true);
+    }
     if let Some(rolls) = &m.roll_hypotheses {
         if rolls.iter().any(|r| !r.is_finite() || r.abs() >= 90.0) {
             usage_error("--roll-hypotheses must be degrees between -90 and 90");
@@ -137,7 +145,6 @@ fn load_models(m: &ModelArgs) -> Result<Unshear> {
     if m.no_roll_search {
         unshear.set_roll_hypotheses(&[]);
     }
-    unshear.set_search_every_view(m.search_every_view);
     if m.no_shear_search {
         unshear.set_shear_hypotheses(&[]);
         unshear.set_roll_hypotheses(&[]);
