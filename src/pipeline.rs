@@ -161,7 +161,8 @@ pub const MEASURED_VIEW_MIN_SHEAR: f64 = 0.1;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum FaceSearch {
     /// Every view, for every image: the image as it is, each de-sheared view
-    /// ([`DEFAULT_SHEAR_HYPOTHESES`]) and each turned view ([`THOROUGH_ROLL_HYPOTHESES`]),
+    /// ([`DEFAULT_SHEAR_HYPOTHESES`]) and each turned view ([`THOROUGH_ROLL_HYPOTHESES`]; these
+    /// ten from boxes of [`THOROUGH_VIEW_MIN_FACE`] up),
     /// with the landmark network's face score (not the detector's neighbour count) deciding
     /// what is a face: the detector is asked for boxes of [`THOROUGH_MIN_NEIGHBORS`] raw hit and
     /// the network drops the boxes that show no face ([`MIN_FACE_SCORE`]). Needs the network:
