@@ -171,7 +171,7 @@ pub enum FaceSearch {
     ///
     /// Measured on the 928 Caltech development faces (README, *Detection under shear*): 97.7 /
     /// 97.2 / 97.4% found at k = 0 / +0.40 / -0.40, against 94.9 / 94.2 / 94.1% with
-    /// [`FaceSearch::Quick`], for about seven times the time per image (eleven detections
+    /// [`FaceSearch::Quick`], for about six times the time per image (eleven detections
     /// instead of usually one).
     #[default]
     Thorough,
