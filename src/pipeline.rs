@@ -400,9 +400,9 @@ pub struct Unshear {
     shear_hypotheses: Vec<f64>,
     roll_hypotheses: Vec<f64>,
     search_every_view: bool,
-    /// The detector with [`THOROUGH_MIN_NEIGHBORS`]: [`FaceSearch::Thorough`] is on (with the
-    /// network, it searches every view with it).
-    lenient: Option<ThoroughDetectors>,
+    /// The detectors of [`FaceSearch::Thorough`], when it is set (they are used with the
+    /// network only).
+    thorough: Option<ThoroughDetectors>,
 }
 
 /// The detectors of [`FaceSearch::Thorough`]: both lenient ([`THOROUGH_MIN_NEIGHBORS`]); the
@@ -436,7 +436,7 @@ impl Unshear {
             shear_hypotheses: DEFAULT_SHEAR_HYPOTHESES.to_vec(),
             roll_hypotheses: DEFAULT_ROLL_HYPOTHESES.to_vec(),
             search_every_view: false,
-            lenient: None,
+            thorough: None,
         }
     }
 
@@ -460,21 +460,21 @@ impl Unshear {
                     ..params
                 };
                 let cascade = self.detector.cascade();
-                self.lenient = Some(ThoroughDetectors {
+                self.thorough = Some(ThoroughDetectors {
                     as_is: FaceDetector::new(cascade.clone(), params),
                     views: FaceDetector::new(cascade.clone(), views),
                 });
             }
             FaceSearch::Quick => {
                 self.roll_hypotheses = DEFAULT_ROLL_HYPOTHESES.to_vec();
-                self.lenient = None;
+                self.thorough = None;
             }
         }
     }
 
     /// The lenient detectors when the thorough search is on and the network judges their boxes.
     fn thorough_detectors(&self) -> Option<&ThoroughDetectors> {
-        self.lenient
+        self.thorough
             .as_ref()
             .filter(|_| self.locator() == Locator::Network)
     }
