@@ -1079,6 +1079,13 @@ impl Unshear {
             // Not a face: a false detection, which must not report a shear.
             return None;
         }
+        if found.roll.abs() > crate::estimate::MAX_ROLL {
+            // A face rolled beyond what the search looks for (turned views up to 45 degrees and
+            // the cascade's tolerance about them) and where shear and roll stop being separable
+            // (see MAX_ROLL): on the development photos these were patterns the network read
+            // sideways or upside down, and copies of faces found upright in another box.
+            return None;
+        }
         let nostrils = self.nostrils_below(gray, &found);
         let eye_line = Point::new(
             found.left_eye.x - found.right_eye.x,
@@ -1326,16 +1333,50 @@ fn strongest_of_overlapping(mut found: Vec<Detection>) -> Vec<Detection> {
     kept
 }
 
-/// Of faces whose boxes overlap (IoU 0.3 or more), the one with the most confident estimate
-/// (a face without an estimate last).
+/// How close (in eye distances, the smaller of the two faces') the eye midpoints of two
+/// estimates must be for them to be one face found twice ([`same_face`]). Two people's eye
+/// midpoints are two or more eye distances apart even in a crowd.
+pub const SAME_FACE_EYE_DISTANCES: f64 = 0.5;
+
+/// Whether two estimates located the same face: their eye midpoints within
+/// [`SAME_FACE_EYE_DISTANCES`]. Their boxes can still differ much: a turned view's box around
+/// a whole head, say, from which the features were followed to the face that another box holds
+/// tightly.
+fn same_face(a: &FaceReport, b: &FaceReport) -> bool {
+    let eye_distance = a
+        .right_eye
+        .distance(a.left_eye)
+        .min(b.right_eye.distance(b.left_eye));
+    let apart = a
+        .right_eye
+        .midpoint(a.left_eye)
+        .distance(b.right_eye.midpoint(b.left_eye));
+    apart < SAME_FACE_EYE_DISTANCES * eye_distance
+}
+
+/// Of faces whose boxes overlap (IoU 0.3 or more) or whose estimates located the same face
+/// ([`same_face`]), the one with the most confident estimate (a face without an estimate last),
+/// preferring one whose box holds both eyes it located: a box the features were followed out
+/// of (from a false alarm beside the face, say) does not show where the face is.
 fn most_confident_of_overlapping(
     mut all: Vec<(Rect, Option<FaceReport>)>,
 ) -> Vec<(Rect, Option<FaceReport>)> {
     let confidence = |r: &Option<FaceReport>| r.as_ref().map_or(-1.0, |r| r.confidence);
-    all.sort_by(|a, b| confidence(&b.1).total_cmp(&confidence(&a.1)));
+    let holds_its_eyes = |(b, r): &(Rect, Option<FaceReport>)| {
+        r.as_ref()
+            .is_some_and(|r| b.contains(r.right_eye) && b.contains(r.left_eye))
+    };
+    all.sort_by(|a, b| {
+        holds_its_eyes(b)
+            .cmp(&holds_its_eyes(a))
+            .then(confidence(&b.1).total_cmp(&confidence(&a.1)))
+    });
     let mut kept: Vec<(Rect, Option<FaceReport>)> = Vec::new();
     for f in all {
-        if kept.iter().all(|k| k.0.iou(&f.0) < 0.3) {
+        let duplicate = |k: &(Rect, Option<FaceReport>)| {
+            k.0.iou(&f.0) >= 0.3 || matches!((&k.1, &f.1), (Some(a), Some(b)) if same_face(a, b))
+        };
+        if !kept.iter().any(duplicate) {
             kept.push(f);
         }
     }
@@ -1649,6 +1690,40 @@ mod tests {
             "the most confident of the three overlapping"
         );
         assert!(kept[1].1.is_none() && kept[1].0.x == 400.0);
+    }
+
+    #[test]
+    fn one_face_found_in_two_boxes_is_reported_once() {
+        let located = |x: f64, confidence: f64| FaceReport {
+            right_eye: Point::new(x, 50.0),
+            left_eye: Point::new(x + 40.0, 50.0),
+            ..face(Some(0.1), confidence)
+        };
+        let tight = Rect::new(80.0, 20.0, 105.0, 105.0);
+        // A box three times as large (IoU 0.11) whose features led to the same eyes, 4 px off.
+        let around_the_head = Rect::new(0.0, -60.0, 315.0, 315.0);
+        assert!(tight.iou(&around_the_head) < 0.3);
+        let kept = most_confident_of_overlapping(vec![
+            (around_the_head, Some(located(104.0, 0.6))),
+            (tight, Some(located(100.0, 0.9))),
+            // Another face beside it, one eye distance and a half away: kept.
+            (
+                Rect::new(150.0, 20.0, 105.0, 105.0),
+                Some(located(160.0, 0.5)),
+            ),
+        ]);
+        assert_eq!(kept.len(), 2, "{kept:?}");
+        assert_eq!(kept[0].0, tight, "the more confident of the two copies");
+        assert_eq!(kept[1].0.x, 150.0);
+        // A more confident copy from a box beside the face, which does not hold the eyes it
+        // located, gives way to the box that does.
+        let beside = Rect::new(135.0, 20.0, 105.0, 105.0);
+        let kept = most_confident_of_overlapping(vec![
+            (beside, Some(located(102.0, 0.99))),
+            (tight, Some(located(100.0, 0.9))),
+        ]);
+        assert_eq!(kept.len(), 1, "{kept:?}");
+        assert_eq!(kept[0].0, tight);
     }
 
     #[test]

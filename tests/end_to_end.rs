@@ -355,6 +355,54 @@ fn rolled_faces_are_measured_upright() {
     }
 }
 
+/// The landmark network reports no face rolled beyond `estimate::MAX_ROLL` (57 degrees), the
+/// points' model's limit: a fixture turned by 90 degrees, boxed where its upright box went and
+/// searched from that roll, gives no face, while the same turned by 30 degrees is measured
+/// (roll within 3 degrees). Without the limit the network follows the sideways face to its
+/// eyes and reports it (roll about 90), which is how patterns read sideways and copies of
+/// faces found in another box came through on the development photos.
+#[test]
+fn faces_rolled_beyond_the_model_are_not_reported() {
+    use unshear::warp::rotate::rotate_gray;
+    let unshear = Unshear::with_defaults().expect("built-in models");
+    for path in fixtures() {
+        let gray = Unshear::gray(&load(&path));
+        let upright = unshear.estimate_gray(&gray);
+        let face_box = upright.faces[0].face_box;
+        for degrees in [30.0f64, 90.0] {
+            let (turned, rotation) = rotate_gray(&gray, degrees.to_radians()).expect("rotate");
+            let centre = rotation.to_view(face_box.center());
+            let turned_box = unshear::Rect::new(
+                centre.x - face_box.width / 2.0,
+                centre.y - face_box.height / 2.0,
+                face_box.width,
+                face_box.height,
+            );
+            let report = unshear.estimate_face_in_turned_view(
+                &turned,
+                turned_box,
+                0.0,
+                degrees.to_radians(),
+            );
+            if degrees < 57.0 {
+                let face = report.expect("a face rolled 30 degrees is measured");
+                assert!(
+                    (face.roll_degrees - degrees).abs() <= 3.0,
+                    "{}: roll {:.1}",
+                    path.display(),
+                    face.roll_degrees
+                );
+            } else {
+                assert!(
+                    report.is_none(),
+                    "{}: a face rolled {degrees} degrees reported: {report:?}",
+                    path.display()
+                );
+            }
+        }
+    }
+}
+
 /// A face boxed too small or too large is searched again at the scale of its eyes
 /// (`RESCALE_EYE_RATIO`): with the detector's box shrunk or grown by 15% about its centre, the
 /// estimate stays within 0.03 of the one from the box itself, and the report keeps the box it

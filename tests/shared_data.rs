@@ -80,6 +80,7 @@ fn caltech_slice_tracks_the_shear() {
     let options = ShearEvalOptions {
         shears: vec![0.0, 0.3],
         max_pixels: unshear::imageio::DEFAULT_MAX_PIXELS,
+        also_annotated: Vec::new(),
     };
     // Each image cropped to its faces' surroundings, as `unshear eval shear` does (whole photos
     // of up to 2300 px took four minutes here).
@@ -121,4 +122,12 @@ fn caltech_slice_tracks_the_shear() {
         "median at 0.3 {}",
         median(0.3)
     );
+    // Each face is reported once: no second report whose box also holds a found face's eyes
+    // (the same face followed from two boxes; see `pipeline::SAME_FACE_EYE_DISTANCES`).
+    let duplicates: usize = result.samples.iter().map(|s| s.duplicates).sum();
+    println!(
+        "reported faces matching no annotation: {}; duplicates: {duplicates}",
+        result.unmatched.len()
+    );
+    assert_eq!(duplicates, 0, "faces reported twice");
 }

@@ -41,6 +41,35 @@ pub struct ShearEvalOptions {
     pub shears: Vec<f64>,
     /// Decoded-size limit for the images.
     pub max_pixels: u64,
+    /// Faces annotated in the evaluated images but not evaluated themselves (too small, or
+    /// beyond a limit): a detection of one of them is a real face, not counted as unmatched.
+    pub also_annotated: Vec<AnnotatedFace>,
+}
+
+/// A detection, kept by the pipeline, that contains no annotated face of its image (both eyes
+/// of none in its box). The data sets do not annotate every face (background and profile
+/// faces go without), so these bound the false faces from above: each is a false face or an
+/// unannotated real one.
+#[derive(Debug, Clone, PartialEq, Default, Serialize)]
+pub struct UnmatchedDetection {
+    /// The image.
+    pub image: String,
+    /// The shear applied.
+    pub true_k: f64,
+    /// The box's centre, in the original (unsheared, uncropped) image's pixels.
+    pub centre: [f64; 2],
+    /// The box's width, pixels.
+    pub width: f64,
+    /// The estimate measured on it, accepted or refused.
+    pub measured: f64,
+    /// Whether that estimate was accepted (confident enough to report and correct by).
+    pub accepted: bool,
+    /// The roll measured on it, degrees.
+    pub roll_degrees: f64,
+    /// Its confidence.
+    pub confidence: f64,
+    /// The network's face score (network locator only).
+    pub face_score: Option<f64>,
 }
 
 /// One face under one shear.
@@ -56,6 +85,9 @@ pub struct ShearSample {
     pub eye_distance: f64,
     /// A detected box contained both true eyes.
     pub detected: bool,
+    /// Further reported faces whose boxes also contain both true eyes: the same face reported
+    /// more than once.
+    pub duplicates: usize,
     /// The accepted estimate for that face, if any (a detected face may give none: the located
     /// points are unusable, or the estimate was refused for low confidence).
     pub estimate: Option<f64>,
@@ -108,6 +140,8 @@ pub struct ShearEvalResult {
     pub shears: Vec<f64>,
     /// Images that could not be read.
     pub unreadable: Vec<String>,
+    /// Detections matching no annotated face, every shear.
+    pub unmatched: Vec<UnmatchedDetection>,
 }
 
 /// Runs the evaluation on whole images (no context crop), in parallel over images; `tick` is
@@ -133,13 +167,21 @@ pub fn evaluate_shear_in_context(
     let groups = by_image(faces.to_vec());
     // Parallel over images, the shears of one image in turn: each image is decoded (and
     // cropped) once, not once per shear, which was a third of the run time.
-    let results: Vec<std::result::Result<Vec<ShearSample>, String>> = groups
+    type Found = (Vec<ShearSample>, Vec<UnmatchedDetection>);
+    let results: Vec<std::result::Result<Found, String>> = groups
         .par_iter()
         .map(|(path, annotated)| {
             let (img, origin) = load_cropped(path, annotated, options, context)?;
-            let mut out = Vec::new();
+            let known: Vec<&AnnotatedFace> = annotated
+                .iter()
+                .chain(options.also_annotated.iter().filter(|f| &f.image == path))
+                .collect();
+            let mut out: Found = (Vec::new(), Vec::new());
             for &k in &options.shears {
-                out.extend(run_one(unshear, path, &img, origin, annotated, k)?);
+                let (samples, unmatched) =
+                    run_one(unshear, path, &img, origin, annotated, &known, k)?;
+                out.0.extend(samples);
+                out.1.extend(unmatched);
                 for _ in annotated.iter() {
                     tick();
                 }
@@ -148,10 +190,14 @@ pub fn evaluate_shear_in_context(
         })
         .collect();
     let mut samples = Vec::new();
+    let mut unmatched = Vec::new();
     let mut unreadable = Vec::new();
     for r in results {
         match r {
-            Ok(s) => samples.extend(s),
+            Ok((s, u)) => {
+                samples.extend(s);
+                unmatched.extend(u);
+            }
             Err(e) => {
                 if !unreadable.contains(&e) {
                     unreadable.push(e);
@@ -163,6 +209,7 @@ pub fn evaluate_shear_in_context(
         samples,
         shears: options.shears.clone(),
         unreadable,
+        unmatched,
     }
 }
 
@@ -190,8 +237,9 @@ fn run_one(
     img: &image::DynamicImage,
     origin: Point,
     annotated: &[AnnotatedFace],
+    known: &[&AnnotatedFace],
     k: f64,
-) -> std::result::Result<Vec<ShearSample>, String> {
+) -> std::result::Result<(Vec<ShearSample>, Vec<UnmatchedDetection>), String> {
     let shear = Shear::about_middle(k, img.height());
     let (sheared, placement) = try_apply_shear(img, shear, Interpolation::Linear, Canvas::Expand)
         .map_err(|e| format!("{}: {e}", path.display()))?;
@@ -202,12 +250,40 @@ fn run_one(
     let millis = start.elapsed().as_secs_f64() * 1e3;
     let moved =
         |p: Point| placement.from_frame(shear.apply(Point::new(p.x - origin.x, p.y - origin.y)));
-    Ok(annotated
+    let unmatched = found
+        .iter()
+        .filter_map(|(b, report)| {
+            let r = report.as_ref()?;
+            let real = known
+                .iter()
+                .any(|f| b.contains(moved(f.right_eye)) && b.contains(moved(f.left_eye)));
+            if real {
+                return None;
+            }
+            let c = shear.invert(placement.to_frame(b.center()));
+            Some(UnmatchedDetection {
+                image: path.display().to_string(),
+                true_k: k,
+                centre: [c.x + origin.x, c.y + origin.y],
+                width: b.width,
+                measured: r.k_measured,
+                accepted: r.k.is_some(),
+                roll_degrees: r.roll_degrees,
+                confidence: r.confidence,
+                face_score: r.face_score,
+            })
+        })
+        .collect();
+    let samples = annotated
         .iter()
         .enumerate()
         .map(|(i, f)| {
             let (re, le) = (moved(f.right_eye), moved(f.left_eye));
-            let hit = found.iter().find(|(b, _)| b.contains(re) && b.contains(le));
+            let mut hits = found
+                .iter()
+                .filter(|(b, _)| b.contains(re) && b.contains(le));
+            let hit = hits.next();
+            let duplicates = hits.filter(|(_, r)| r.is_some()).count();
             let report = hit.and_then(|(_, r)| r.as_ref());
             let ed = f.eye_distance();
             let oracle = f.nose.and_then(|n| {
@@ -222,6 +298,7 @@ fn run_one(
                 true_k: k,
                 eye_distance: ed,
                 detected: hit.is_some(),
+                duplicates,
                 estimate: report.and_then(|d| d.k),
                 measured: report.map(|d| d.k_measured),
                 confidence: report.map(|d| d.confidence),
@@ -254,7 +331,8 @@ fn run_one(
                 millis,
             }
         })
-        .collect())
+        .collect();
+    Ok((samples, unmatched))
 }
 
 /// The crop `(x, y, width, height)` holding `context` nominal face boxes around every face of
@@ -400,6 +478,25 @@ impl ShearEvalResult {
                 slope.flatten().map_or("-".into(), |v| format!("{v:.3}")),
             );
         }
+        let _ = writeln!(
+            s,
+            "\nDetections matching no annotated face per shear (no annotated face, small ones included, has both eyes in the box; the data set does not annotate every face, so each is a false face or an unannotated real one: an upper bound on false faces; *accepted*: with an accepted estimate; *duplicates*: further reported faces whose boxes hold both eyes of an evaluated face already found, the same face reported twice):\n\n| true k | unmatched | accepted | images with one | duplicates |\n|---:|---:|---:|---:|---:|"
+        );
+        for &k in &self.shears {
+            let at: Vec<&UnmatchedDetection> =
+                self.unmatched.iter().filter(|u| u.true_k == k).collect();
+            let mut images: Vec<&str> = at.iter().map(|u| u.image.as_str()).collect();
+            images.sort_unstable();
+            images.dedup();
+            let _ = writeln!(
+                s,
+                "| {k:+.2} | {} | {} | {} | {} |",
+                at.len(),
+                at.iter().filter(|u| u.accepted).count(),
+                images.len(),
+                self.at(k).iter().map(|s| s.duplicates).sum::<usize>()
+            );
+        }
         let located: Vec<f64> = self.samples.iter().filter_map(|s| s.eye_error).collect();
         let all = self.samples.len();
         let _ = writeln!(
@@ -425,8 +522,9 @@ impl ShearEvalResult {
         serde_json::to_string_pretty(&self.samples).unwrap_or_else(|_| "[]".into())
     }
 
-    /// Writes `samples.csv`, `samples.json`, `summary.md`, `estimates.png` (estimated vs true
-    /// k) and `errors.png` (estimate-error histograms per k) into `dir` (created if needed).
+    /// Writes `samples.csv`, `samples.json`, `unmatched.csv` (see [`Self::unmatched_csv`]),
+    /// `summary.md`, `estimates.png` (estimated vs true k) and `errors.png` (estimate-error
+    /// histograms per k) into `dir` (created if needed).
     pub fn write_outputs(&self, dir: &Path) -> Result<()> {
         let io = |path: &Path, e: std::io::Error| Error::Io {
             path: path.to_path_buf(),
@@ -439,6 +537,7 @@ impl ShearEvalResult {
         };
         write("samples.csv", self.csv())?;
         write("samples.json", self.json())?;
+        write("unmatched.csv", self.unmatched_csv())?;
         let mut md = self.markdown();
         let _ = write!(
             md,
@@ -475,6 +574,32 @@ impl ShearEvalResult {
             super::plot::error_histograms(&groups, 0.2, 40, 0.5),
         )?;
         Ok(())
+    }
+
+    /// The detections matching no annotated face as CSV, one per line: image, true k, box
+    /// centre in the original image (x, y), box width, measured k, accepted, roll (degrees),
+    /// confidence, face score.
+    pub fn unmatched_csv(&self) -> String {
+        let mut s = String::from(
+            "image,true_k,centre_x,centre_y,width,measured,accepted,roll_degrees,confidence,face_score\n",
+        );
+        for u in &self.unmatched {
+            let _ = writeln!(
+                s,
+                "{},{},{:.1},{:.1},{:.1},{:.5},{},{:.2},{:.4},{}",
+                u.image,
+                u.true_k,
+                u.centre[0],
+                u.centre[1],
+                u.width,
+                u.measured,
+                u.accepted,
+                u.roll_degrees,
+                u.confidence,
+                u.face_score.map_or(String::new(), |f| format!("{f:.4}"))
+            );
+        }
+        s
     }
 
     /// Every sample as CSV.
@@ -526,13 +651,30 @@ mod tests {
     fn table_reports_known_values() {
         let r = ShearEvalResult {
             samples: vec![
-                sample(0.0, 0, Some(0.01)),
+                ShearSample {
+                    duplicates: 1,
+                    ..sample(0.0, 0, Some(0.01))
+                },
                 sample(0.0, 1, Some(-0.03)),
                 sample(0.2, 0, Some(0.22)),
                 sample(0.2, 1, None),
             ],
             shears: vec![0.0, 0.2],
             unreadable: vec![],
+            // Two unmatched boxes at k = 0.2 in one image, one of them accepted.
+            unmatched: vec![
+                UnmatchedDetection {
+                    image: "b".into(),
+                    true_k: 0.2,
+                    accepted: true,
+                    ..Default::default()
+                },
+                UnmatchedDetection {
+                    image: "b".into(),
+                    true_k: 0.2,
+                    ..Default::default()
+                },
+            ],
         };
         assert!(r.json().contains("\"true_k\": 0.2"));
         let md = r.markdown();
@@ -541,7 +683,10 @@ mod tests {
         // k = 0.2: one of two detected; tracking 0.22 - 0.01 - 0.2 = 0.01.
         assert!(md.contains("| +0.20 | 2 | 50.0% | 50.0% | 0.220 | 0.020 | 0.020 | 50.0% | 50.0% | 0.010 | 0.000 |"), "{md}");
         assert!(md.contains("<= 0.05: 75.0%"), "{md}");
+        assert!(md.contains("| +0.00 | 0 | 0 | 0 | 1 |"), "{md}");
+        assert!(md.contains("| +0.20 | 2 | 1 | 1 | 0 |"), "{md}");
         assert_eq!(r.csv().lines().count(), 5);
+        assert_eq!(r.unmatched_csv().lines().count(), 3);
     }
 }
 
@@ -585,6 +730,7 @@ mod protocol_tests {
             samples,
             shears,
             unreadable: vec![],
+            unmatched: vec![],
         };
         let md = r.markdown();
         for row in [
@@ -599,6 +745,7 @@ mod protocol_tests {
         for f in [
             "samples.csv",
             "samples.json",
+            "unmatched.csv",
             "summary.md",
             "estimates.png",
             "errors.png",

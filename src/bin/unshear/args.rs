@@ -325,7 +325,8 @@ pub struct EvalShearArgs {
     /// Also write every sample as CSV here.
     #[arg(long, value_name = "FILE")]
     pub csv: Option<PathBuf>,
-    /// Write samples.csv, samples.json, summary.md and PNG plots into this folder.
+    /// Write samples.csv, samples.json, unmatched.csv (reported faces that match no annotated
+    /// face), summary.md and PNG plots into this folder.
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
     /// Crop each image to this many nominal face boxes around its annotated faces before

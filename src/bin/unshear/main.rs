@@ -516,18 +516,23 @@ fn eval_shear(a: EvalShearArgs) -> Result<()> {
         .min_face
         .or(Some((1.5 * a.min_eye_distance.max(0.0)).floor() as u32));
     let unshear = load_models(&model)?;
-    let mut faces: Vec<_> = CaltechWebFaces::new(&a.data)
+    let annotated = CaltechWebFaces::new(&a.data)
         .faces()
-        .with_context(|| format!("reading the data set in {}", a.data.display()))?
+        .with_context(|| format!("reading the data set in {}", a.data.display()))?;
+    let (mut faces, mut also_annotated): (Vec<_>, Vec<_>) = annotated
         .into_iter()
-        .filter(|f| f.eye_distance() >= a.min_eye_distance)
-        .collect();
+        .partition(|f| f.eye_distance() >= a.min_eye_distance);
     if let Some(n) = a.limit {
-        faces.truncate(n);
+        also_annotated.extend(faces.split_off(n.min(faces.len())));
     }
+    // The faces not evaluated still tell which detections are real faces, in the images
+    // evaluated.
+    let evaluated: std::collections::HashSet<_> = faces.iter().map(|f| f.image.clone()).collect();
+    also_annotated.retain(|f| evaluated.contains(&f.image));
     let options = ShearEvalOptions {
         shears: a.k.clone(),
         max_pixels: a.model.max_pixels,
+        also_annotated,
     };
     let bar = progress_bar((faces.len() * a.k.len()) as u64);
     let result = evaluate_shear_in_context(&unshear, &faces, &options, a.context, || bar.inc(1));
