@@ -3,11 +3,13 @@
 //! rayon pool (all cores). A Yale fixture face, scaled 3x (a face box of about 440 px), pans
 //! across the frame with a shear that follows the pan speed.
 //!
-//! Run with `cargo bench --bench video`; criterion's "thrpt" line is frames per second.
+//! Run with `cargo bench --bench video`; criterion's "thrpt" line is frames per second. Two
+//! variants: the default locator (the landmark network) and `Locator::Filters`.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use image::{imageops, DynamicImage, GrayImage, Luma};
 use std::hint::black_box;
+use unshear::pipeline::Locator;
 use unshear::video::y4m::{Y4mReader, Y4mWriter};
 use unshear::video::{run, Chroma, ProcessOptions, VideoFormat, VideoProcessor, YuvFrame};
 use unshear::warp::{apply_shear, Canvas, Interpolation};
@@ -59,29 +61,37 @@ fn clip() -> Vec<u8> {
 
 fn bench_video(c: &mut Criterion) {
     let bytes = clip();
-    let unshear = Unshear::with_defaults().expect("built-in models");
     let mut group = c.benchmark_group("video_1920x1080_420");
     group.throughput(Throughput::Elements(FRAMES as u64));
     group.sample_size(10);
-    group.bench_function("end_to_end_60_frames", |b| {
-        b.iter(|| {
-            let mut reader = Y4mReader::new(black_box(bytes.as_slice()), 1 << 24).expect("clip");
-            let mut writer =
-                Y4mWriter::with_header(Vec::with_capacity(bytes.len()), reader.header())
-                    .expect("header");
-            let mut processor = VideoProcessor::new(&unshear, ProcessOptions::default());
-            let mut faces = 0usize;
-            run(&mut reader, Some(&mut writer), &mut processor, |r| {
-                faces += r.faces.len()
+    // The default locator (the landmark network), then the filters for comparison.
+    for (name, locator) in [
+        ("end_to_end_60_frames", Locator::Network),
+        ("end_to_end_60_frames_filters", Locator::Filters),
+    ] {
+        let mut unshear = Unshear::with_defaults().expect("built-in models");
+        unshear.set_locator(locator);
+        group.bench_function(name, |b| {
+            b.iter(|| {
+                let mut reader =
+                    Y4mReader::new(black_box(bytes.as_slice()), 1 << 24).expect("clip");
+                let mut writer =
+                    Y4mWriter::with_header(Vec::with_capacity(bytes.len()), reader.header())
+                        .expect("header");
+                let mut processor = VideoProcessor::new(&unshear, ProcessOptions::default());
+                let mut faces = 0usize;
+                run(&mut reader, Some(&mut writer), &mut processor, |r| {
+                    faces += r.faces.len()
+                })
+                .expect("run");
+                assert!(
+                    faces >= FRAMES * 9 / 10,
+                    "face found in most frames: {faces}"
+                );
+                writer.finish().expect("flush")
             })
-            .expect("run");
-            assert!(
-                faces >= FRAMES * 9 / 10,
-                "face found in most frames: {faces}"
-            );
-            writer.finish().expect("flush")
-        })
-    });
+        });
+    }
     group.finish();
 }
 
