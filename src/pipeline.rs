@@ -33,7 +33,7 @@ use crate::features::{
 };
 use crate::filters::{Correlator, EyeFilters, FilterType};
 use crate::geometry::{Point, Rect, Shear};
-use crate::landmarks::{self, LandmarkNet, LocatedFace};
+use crate::landmarks::{self, Budget, LandmarkNet, LocatedFace};
 use crate::warp::{self, Canvas, Interpolation};
 
 /// `b` scaled by `factor` about its centre (a fallback detector's box mapped onto the main
@@ -896,6 +896,24 @@ impl Unshear {
         self.estimate_face_in_turned_view(gray, face_box, start_k, 0.0)
     }
 
+    /// [`Self::estimate_face_in_view`] with the landmark network limited to `budget` (see
+    /// [`landmarks::Budget`]; video uses [`Budget::VIDEO`]); the same as
+    /// [`Self::estimate_face_in_view`] with the filters.
+    pub fn estimate_face_in_view_within(
+        &self,
+        gray: &GrayImage,
+        face_box: Rect,
+        start_k: f64,
+        budget: Budget,
+    ) -> Option<FaceReport> {
+        match (self.locator(), &self.network) {
+            (Locator::Network, Some(net)) => {
+                self.network_estimate(net, gray, face_box, start_k, 0.0, budget)
+            }
+            _ => self.estimate_face_in_view(gray, face_box, start_k),
+        }
+    }
+
     /// [`Self::estimate_face_in_view`] with the features searched in the face turned against a
     /// head roll of `roll` radians about the box centre (where a turned view found it), so that
     /// the filters see an upright face; the points, and so the estimate, are in the input's
@@ -915,7 +933,7 @@ impl Unshear {
         roll: f64,
     ) -> Option<FaceReport> {
         if let (Locator::Network, Some(net)) = (self.locator(), &self.network) {
-            return self.network_estimate(net, gray, face_box, start_k, roll);
+            return self.network_estimate(net, gray, face_box, start_k, roll, Budget::STILL);
         }
         let mut best = self.locate_and_estimate(gray, face_box, start_k, roll)?;
         let (mut last, mut searched_roll) = (best, roll);
@@ -1054,6 +1072,7 @@ impl Unshear {
         face_box: Rect,
         start_k: f64,
         roll: f64,
+        budget: Budget,
     ) -> Option<FaceReport> {
         if !can_search(gray, face_box) || !start_k.is_finite() || !roll.is_finite() {
             return None;
@@ -1073,8 +1092,8 @@ impl Unshear {
             start_k,
             roll,
         );
-        let found =
-            NET_WORKSPACE.with(|ws| landmarks::locate(net, gray, start, &mut ws.borrow_mut()))?;
+        let found = NET_WORKSPACE
+            .with(|ws| landmarks::locate_within(net, gray, start, budget, &mut ws.borrow_mut()))?;
         if found.face < MIN_FACE_SCORE {
             // Not a face: a false detection, which must not report a shear.
             return None;

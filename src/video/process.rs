@@ -11,9 +11,10 @@ use rayon::prelude::*;
 use super::temporal::{FilterParams, ShearSmoother, Update, DEFAULT_SMOOTHING_LAG};
 use super::tracker::{FaceTracker, TrackerParams, TrackerStats};
 use super::VideoFrame;
+use crate::landmarks::Budget;
 use crate::pipeline::combined_shear;
 use crate::warp::Interpolation;
-use crate::{FaceReport, Result, Unshear};
+use crate::{FaceReport, Rect, Result, Unshear};
 
 /// Which `k` corrects the frames.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -41,6 +42,9 @@ pub struct ProcessOptions {
     pub k_source: KSource,
     /// Row resampling.
     pub interpolation: Interpolation,
+    /// The landmark network's work per face ([`Budget::VIDEO`] by default: fewer, cheaper
+    /// crops than for stills; the temporal filter averages their noise).
+    pub network_budget: Budget,
 }
 
 impl Default for ProcessOptions {
@@ -52,6 +56,7 @@ impl Default for ProcessOptions {
             correct: true,
             k_source: KSource::Filtered,
             interpolation: Interpolation::Linear,
+            network_budget: Budget::VIDEO,
         }
     }
 }
@@ -130,16 +135,12 @@ impl<'a> VideoProcessor<'a> {
         let view_k = self.smoother.filter().k();
         let boxes = self.tracker.track(gray, view_k);
         let unshear = self.unshear;
+        let budget = self.options.network_budget;
+        let estimate = |&b: &Rect| unshear.estimate_face_in_view_within(gray, b, view_k, budget);
         let faces: Vec<FaceReport> = if boxes.len() > 1 {
-            boxes
-                .par_iter()
-                .filter_map(|&b| unshear.estimate_face_in_view(gray, b, view_k))
-                .collect()
+            boxes.par_iter().filter_map(estimate).collect()
         } else {
-            boxes
-                .iter()
-                .filter_map(|&b| unshear.estimate_face_in_view(gray, b, view_k))
-                .collect()
+            boxes.iter().filter_map(estimate).collect()
         };
         let k_raw = combined_shear(&faces);
         let (update, due) = self.smoother.push(k_raw);

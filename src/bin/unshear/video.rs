@@ -237,6 +237,7 @@ pub fn video(a: VideoArgs) -> Result<()> {
             KSourceArg::Raw => KSource::Raw,
         },
         interpolation: a.interp.into(),
+        ..Default::default()
     };
     let mut processor = VideoProcessor::new(&unshear, options);
     let (mut source, header, protected, made): (Box<dyn FrameSource>, _, _, _) = match input {
