@@ -906,12 +906,7 @@ impl Unshear {
         start_k: f64,
         budget: Budget,
     ) -> Option<FaceReport> {
-        match (self.locator(), &self.network) {
-            (Locator::Network, Some(net)) => {
-                self.network_estimate(net, gray, face_box, start_k, 0.0, budget)
-            }
-            _ => self.estimate_face_in_view(gray, face_box, start_k),
-        }
+        self.estimate_turned_within(gray, face_box, start_k, 0.0, budget)
     }
 
     /// [`Self::estimate_face_in_view`] with the features searched in the face turned against a
@@ -932,8 +927,21 @@ impl Unshear {
         start_k: f64,
         roll: f64,
     ) -> Option<FaceReport> {
+        self.estimate_turned_within(gray, face_box, start_k, roll, Budget::STILL)
+    }
+
+    /// [`Self::estimate_face_in_turned_view`] with the landmark network limited to `budget`
+    /// (the filters have no budget).
+    fn estimate_turned_within(
+        &self,
+        gray: &GrayImage,
+        face_box: Rect,
+        start_k: f64,
+        roll: f64,
+        budget: Budget,
+    ) -> Option<FaceReport> {
         if let (Locator::Network, Some(net)) = (self.locator(), &self.network) {
-            return self.network_estimate(net, gray, face_box, start_k, roll, Budget::STILL);
+            return self.network_estimate(net, gray, face_box, start_k, roll, budget);
         }
         let mut best = self.locate_and_estimate(gray, face_box, start_k, roll)?;
         let (mut last, mut searched_roll) = (best, roll);
