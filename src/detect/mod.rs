@@ -28,4 +28,4 @@ mod viola_jones;
 
 pub use cascade::Cascade;
 pub use resize::to_gray_opencv;
-pub use viola_jones::{DetectorParams, FaceDetector};
+pub use viola_jones::{DetectorParams, FaceDetector, NearMisses, NEAR_MISS_MAX_IOU};

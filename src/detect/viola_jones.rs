@@ -37,6 +37,11 @@ pub struct DetectorParams {
     pub min_size: (u32, u32),
     /// Largest box to report; `None` (or a zero dimension, as in OpenCV) means the whole image.
     pub max_size: Option<(u32, u32)>,
+    /// How many of the cascade's last stages a window may fail and still count towards a near
+    /// miss ([`FaceDetector::detect_with_near_misses`]; as OpenCV's `outputRejectLevels` keeps
+    /// windows that reach the last stages). 0, the default, gives none. The boxes of
+    /// [`FaceDetector::detect`] and [`FaceDetector::detect_with_neighbors`] never depend on it.
+    pub stage_slack: u32,
 }
 
 impl Default for DetectorParams {
@@ -46,6 +51,7 @@ impl Default for DetectorParams {
             min_neighbors: 3,
             min_size: (0, 0),
             max_size: None,
+            stage_slack: 0,
         }
     }
 }
@@ -92,34 +98,82 @@ impl FaceDetector {
     /// Detected boxes with the number of raw hits merged into each (a confidence: more is
     /// surer). With `min_neighbors == 0` every raw hit is returned with count 1.
     pub fn detect_with_neighbors(&self, gray: &GrayImage) -> Vec<(Rect, u32)> {
-        let raw = self.raw_candidates(gray);
-        group_rectangles(&raw, self.params.min_neighbors, GROUP_EPS)
-            .into_iter()
-            .map(|(r, n)| {
-                (
-                    Rect::new(
-                        f64::from(r.x),
-                        f64::from(r.y),
-                        f64::from(r.w),
-                        f64::from(r.h),
-                    ),
-                    n,
-                )
-            })
-            .collect()
+        let (accepted, _) = self.scan(gray, 0);
+        grouped(&accepted, self.params.min_neighbors)
     }
 
-    /// Every accepted window before grouping, in a deterministic order (scale, row, column).
-    pub(crate) fn raw_candidates(&self, gray: &GrayImage) -> Vec<IRect> {
+    /// [`Self::detect_with_neighbors`]'s boxes, and from the same scan the near misses: boxes
+    /// grouped (with the same neighbour count) from the accepted windows together with those
+    /// rejected only by one of the last [`DetectorParams::stage_slack`] stages, that overlap
+    /// none of the detected boxes (intersection over union under [`NEAR_MISS_MAX_IOU`]).
+    ///
+    /// A face the cascade barely sees, one slightly sheared, rolled, blurred or resampled,
+    /// gathers windows that fail only its last stages; false alarms do too, so near misses are
+    /// candidates for a stricter judge, not detections.
+    pub fn detect_with_near_misses(&self, gray: &GrayImage) -> NearMisses {
+        let (accepted, near) = self.scan(gray, self.params.stage_slack);
+        let detected = grouped(&accepted, self.params.min_neighbors);
+        let near_misses = if near.is_empty() {
+            Vec::new()
+        } else {
+            let all = [accepted, near].concat();
+            grouped(&all, self.params.min_neighbors)
+                .into_iter()
+                .filter(|(b, _)| detected.iter().all(|(d, _)| d.iou(b) < NEAR_MISS_MAX_IOU))
+                .collect()
+        };
+        NearMisses {
+            detected,
+            near_misses,
+        }
+    }
+
+    /// The accepted windows and those rejected only by one of the last `stage_slack` stages,
+    /// each in a deterministic order (scale, row, column).
+    fn scan(&self, gray: &GrayImage, stage_slack: u32) -> (Vec<IRect>, Vec<IRect>) {
         let data = &*self.cascade.data;
         let (w, h) = gray.dimensions();
         let factors = plan_scales((w, h), data.window, &self.params);
-        factors
+        let per_scale: Vec<(Vec<IRect>, Vec<IRect>)> = factors
             .par_iter()
-            .map(|&f| scan_scale(data, gray, f, BAND_BYTES))
-            .collect::<Vec<_>>()
-            .concat()
+            .map(|&f| scan_scale(data, gray, f, stage_slack, BAND_BYTES))
+            .collect();
+        let (accepted, near): (Vec<_>, Vec<_>) = per_scale.into_iter().unzip();
+        (accepted.concat(), near.concat())
     }
+}
+
+/// The boxes of [`FaceDetector::detect_with_near_misses`].
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct NearMisses {
+    /// The detector's boxes with their neighbour counts, as
+    /// [`FaceDetector::detect_with_neighbors`] gives them.
+    pub detected: Vec<(Rect, u32)>,
+    /// Boxes that the windows the last stages rejected complete, with their neighbour counts
+    /// (accepted and near-miss windows together).
+    pub near_misses: Vec<(Rect, u32)>,
+}
+
+/// The largest overlap (intersection over union) of a near miss with a detected box: a group
+/// that overlaps a detection more is that detection, enlarged by its near-miss windows.
+pub const NEAR_MISS_MAX_IOU: f64 = 0.3;
+
+/// OpenCV's grouping of `raw` windows, as boxes in input pixels with their neighbour counts.
+fn grouped(raw: &[IRect], min_neighbors: u32) -> Vec<(Rect, u32)> {
+    group_rectangles(raw, min_neighbors, GROUP_EPS)
+        .into_iter()
+        .map(|(r, n)| {
+            (
+                Rect::new(
+                    f64::from(r.x),
+                    f64::from(r.y),
+                    f64::from(r.w),
+                    f64::from(r.h),
+                ),
+                n,
+            )
+        })
+        .collect()
 }
 
 /// OpenCV's scale list (see the module docs).
@@ -352,7 +406,13 @@ impl<'a> Evaluator<'a> {
 }
 
 /// All hits at one scale, in original-image coordinates.
-fn scan_scale(data: &CascadeData, gray: &GrayImage, factor: f32, band_bytes: usize) -> Vec<IRect> {
+fn scan_scale(
+    data: &CascadeData,
+    gray: &GrayImage,
+    factor: f32,
+    stage_slack: u32,
+    band_bytes: usize,
+) -> (Vec<IRect>, Vec<IRect>) {
     let (iw, ih) = gray.dimensions();
     let sw = round_f32(iw as f32 / factor).max(0) as usize;
     let sh = round_f32(ih as f32 / factor).max(0) as usize;
@@ -369,7 +429,7 @@ fn scan_scale(data: &CascadeData, gray: &GrayImage, factor: f32, band_bytes: usi
     // Integral offsets are u32: skip scales whose three band planes would not be addressable
     // (rows over ~20 M pixels wide; the image reader's size limit stops such inputs long before).
     if sw < ww || sh < wh || 3 * (sw + 1) * (band_height + 1) > u32::MAX as usize {
-        return Vec::new();
+        return (Vec::new(), Vec::new());
     }
     // At factor 1 the "resize" is a copy (as in OpenCV): read the image itself instead, which
     // saves a full-size copy at the scale that needs the most memory.
@@ -393,16 +453,24 @@ fn scan_scale(data: &CascadeData, gray: &GrayImage, factor: f32, band_bytes: usi
         round_f32(data.window.1 as f32 * factor) as i32,
     );
     let rows: Vec<usize> = (0..ny).step_by(step).collect();
+    // `run_at` returns -s for a window rejected by stage s >= 1 (and -1 for a flat window): the
+    // windows rejected by stages from `first_slack` on are near misses. Never below stage 2, so
+    // that neither flat windows nor first-stage rejections (0) are.
+    let first_slack = data
+        .stages
+        .len()
+        .saturating_sub(stage_slack as usize)
+        .max(2) as i32;
     // Window rows whose windows fit in one band.
     let rows_per_band = (band_height - wh) / step + 1;
-    let mut hits = Vec::new();
+    let (mut accepted, mut near) = (Vec::new(), Vec::new());
     for band in rows.chunks(rows_per_band) {
         let top = band[0];
         let height = band[band.len() - 1] + wh - top;
         ii.compute(&pixels[top * sw..], height);
         let ii = &ii;
         // Chunks of 8 rows keep rayon's task overhead small while still splitting big bands.
-        let found: Vec<IRect> = band
+        let found: Vec<(IRect, bool)> = band
             .par_chunks(8)
             .flat_map_iter(|chunk| {
                 let mut hits = Vec::new();
@@ -411,13 +479,14 @@ fn scan_scale(data: &CascadeData, gray: &GrayImage, factor: f32, band_bytes: usi
                     let mut x = 0;
                     while x < nx {
                         let r = ev.run_at(&ii.buf, row + x);
-                        if r > 0 {
-                            hits.push(IRect {
+                        if r > 0 || -r >= first_slack {
+                            let hit = IRect {
                                 x: round_f32(x as f32 * factor) as i32,
                                 y: round_f32(y as f32 * factor) as i32,
                                 w: win.0,
                                 h: win.1,
-                            });
+                            };
+                            hits.push((hit, r > 0));
                         }
                         // OpenCV skips the next position after a first-stage rejection.
                         x += if r == 0 { 2 * step } else { step };
@@ -426,9 +495,15 @@ fn scan_scale(data: &CascadeData, gray: &GrayImage, factor: f32, band_bytes: usi
                 hits
             })
             .collect();
-        hits.extend(found);
+        for (hit, is_accepted) in found {
+            if is_accepted {
+                accepted.push(hit);
+            } else {
+                near.push(hit);
+            }
+        }
     }
-    hits
+    (accepted, near)
 }
 
 /// Memory for one scale's band of integral images (see `scan_scale`): about a megapixel fits in
@@ -498,6 +573,68 @@ mod tests {
         assert!(det.detect(&flat).is_empty());
     }
 
+    /// [`TINY`]'s edge stage twice, then a stage no window passes (its leaves sum to at most 1,
+    /// its threshold is 2).
+    fn edge_cascade_with_impossible_last_stage() -> Cascade {
+        let stage = |threshold: f64| {
+            format!(
+                "<_><maxWeakCount>1</maxWeakCount><stageThreshold>{threshold}</stageThreshold>\
+                 <weakClassifiers><_><internalNodes>0 -1 0 0.25</internalNodes>\
+                 <leafValues>0 1</leafValues></_></weakClassifiers></_>"
+            )
+        };
+        let stages = [stage(0.5), stage(0.5), stage(2.0)].concat();
+        let start = TINY.find("<stageNum>").expect("TINY has stages");
+        let end = TINY.find("</stages>").expect("TINY has stages");
+        let xml = format!(
+            "{}<stageNum>3</stageNum><stages>{stages}{}",
+            &TINY[..start],
+            &TINY[end..]
+        );
+        Cascade::from_xml(&xml).expect("a valid three-stage cascade")
+    }
+
+    #[test]
+    fn near_misses_are_windows_only_the_last_stages_reject() {
+        let img = GrayImage::from_fn(12, 12, |x, y| {
+            let base = if x < 6 { 200 } else { 20 };
+            image::Luma([base + ((x * 7 + y * 3) % 5) as u8])
+        });
+        let params = |stage_slack| DetectorParams {
+            scale_factor: 10.0,
+            min_neighbors: 0,
+            stage_slack,
+            ..Default::default()
+        };
+        let detector =
+            |slack| FaceDetector::new(edge_cascade_with_impossible_last_stage(), params(slack));
+        // No window passes the last stage: no detection, whatever the slack.
+        for slack in [0, 1, 5] {
+            assert!(detector(slack).detect(&img).is_empty());
+            assert!(detector(slack)
+                .detect_with_near_misses(&img)
+                .detected
+                .is_empty());
+        }
+        assert!(detector(0)
+            .detect_with_near_misses(&img)
+            .near_misses
+            .is_empty());
+        // With one stage of slack the edge windows (x = 4, five rows) are near misses.
+        let found = detector(1).detect_with_near_misses(&img);
+        assert_eq!(found.near_misses.len(), 5, "{found:?}");
+        assert!(found.near_misses.iter().all(|(b, n)| b.x == 4.0 && *n == 1));
+        // A slack reaching the first stages changes nothing more: stage 1's and the first
+        // stage's rejections never count.
+        assert_eq!(detector(5).detect_with_near_misses(&img), found);
+        // With the last stage passable the same windows are detections, and a near miss
+        // overlapping a detection is not reported.
+        let passable = FaceDetector::new(Cascade::from_xml(TINY).expect("TINY"), params(1));
+        let found = passable.detect_with_near_misses(&img);
+        assert_eq!(found.detected.len(), 5);
+        assert!(found.near_misses.is_empty());
+    }
+
     /// A known detection on a real photo (Yale face database), compared with what OpenCV 4.14's
     /// `detectMultiScale(gray, 1.1, 3)` reports for the same file: `[108, 54, 145, 145]`.
     #[test]
@@ -538,9 +675,9 @@ mod tests {
         let factors = plan_scales(gray.dimensions(), data.window, &det.params);
         let mut total = 0;
         for &f in &factors {
-            let whole = scan_scale(data, &gray, f, usize::MAX);
+            let whole = scan_scale(data, &gray, f, 0, usize::MAX).0;
             // The smallest budget: bands of MIN_BAND_WINDOW_ROWS rows.
-            let thin = scan_scale(data, &gray, f, 1);
+            let thin = scan_scale(data, &gray, f, 0, 1).0;
             assert_eq!(whole, thin, "scale {f}");
             total += whole.len();
         }
