@@ -122,17 +122,18 @@ fn load_models(m: &ModelArgs) -> Result<Unshear> {
     if !(0.0..=1.0).contains(&m.min_confidence) {
         bail!("--min-confidence {} is outside 0 to 1", m.min_confidence);
     }
+    // The face search first: it sets its own views, which the options below may change.
+    unshear.set_face_search(if m.quick || m.no_shear_search {
+        FaceSearch::Quick
+    } else {
+        FaceSearch::Thorough
+    });
     if let Some(hypotheses) = &m.shear_hypotheses {
         if hypotheses.iter().any(|k| !k.is_finite() || k.abs() > 2.0) {
             usage_error("--shear-hypotheses must be numbers between -2 and 2");
         }
         unshear.set_shear_hypotheses(hypotheses);
     }
-    unshear.set_face_search(if m.quick || m.no_shear_search {
-        FaceSearch::Quick
-    } else {
-        FaceSearch::Thorough
-    });
     if m.search_every_view {
         unshear.set_search_every_view(true);
     }
