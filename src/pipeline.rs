@@ -170,7 +170,8 @@ pub enum FaceSearch {
     /// [`THOROUGH_BOX_TRIES`] of a face's overlapping boxes, and drops the boxes that show
     /// no face ([`MIN_FACE_SCORE`], [`NEAR_MISS_MIN_FACE_SCORE`]). Needs the network:
     /// with the filters ([`Locator::Filters`]), which can neither tell a false box nor re-crop a
-    /// face found in a warped view, the search is quick with these de-sheared and turned views.
+    /// face found in a warped view, the search is quick with these turned views (and the quick
+    /// search's de-sheared views, which found more sheared faces with the filters).
     ///
     /// Measured on the 928 Caltech development faces (README, *Detection under shear*): 98.6 /
     /// 98.1 / 98.1% found at k = 0 / +0.40 / -0.40, 98.1-98.9% at every |k| <= 0.40 (97.7 /
@@ -451,6 +452,10 @@ pub struct Unshear {
 struct ThoroughDetectors {
     as_is: FaceDetector,
     views: FaceDetector,
+    /// The de-sheared views ([`THOROUGH_SHEAR_HYPOTHESES`] unless set otherwise): kept here,
+    /// not in `Unshear::shear_hypotheses`, so that the filters' quick search (which the
+    /// thorough setting falls back to) keeps its own, measured to suit it better.
+    shear_hypotheses: Vec<f64>,
 }
 
 thread_local! {
@@ -481,16 +486,15 @@ impl Unshear {
     }
 
     /// Sets how hard faces are searched for (see [`FaceSearch`]; the corrector of [`Self::new`]
-    /// searches quickly, that of [`Self::with_defaults`] thoroughly). Also sets the de-sheared and
-    /// turned views ([`Self::set_shear_hypotheses`] and [`Self::set_roll_hypotheses`], which may
-    /// change them afterwards). The thorough search
+    /// searches quickly, that of [`Self::with_defaults`] thoroughly). Also sets the turned views
+    /// and, for the thorough search, its de-sheared views ([`Self::set_roll_hypotheses`] and
+    /// [`Self::set_shear_hypotheses`], which may change them afterwards). The thorough search
     /// needs the landmark network to judge its lenient boxes and to re-crop a face found in a
     /// warped view until its estimate settles; with the filters ([`Locator::Filters`]) the
     /// search stays quick, with the thorough search's turned views.
     pub fn set_face_search(&mut self, search: FaceSearch) {
         match search {
             FaceSearch::Thorough => {
-                self.shear_hypotheses = THOROUGH_SHEAR_HYPOTHESES.to_vec();
                 self.roll_hypotheses = THOROUGH_ROLL_HYPOTHESES.to_vec();
                 let params = DetectorParams {
                     min_neighbors: THOROUGH_MIN_NEIGHBORS,
@@ -506,10 +510,10 @@ impl Unshear {
                 self.thorough = Some(ThoroughDetectors {
                     as_is: FaceDetector::new(cascade.clone(), params),
                     views: FaceDetector::new(cascade.clone(), views),
+                    shear_hypotheses: THOROUGH_SHEAR_HYPOTHESES.to_vec(),
                 });
             }
             FaceSearch::Quick => {
-                self.shear_hypotheses = DEFAULT_SHEAR_HYPOTHESES.to_vec();
                 self.roll_hypotheses = DEFAULT_ROLL_HYPOTHESES.to_vec();
                 self.thorough = None;
             }
@@ -532,16 +536,20 @@ impl Unshear {
         self.search_every_view = every_view;
     }
 
-    /// Sets the shears whose de-sheared views are searched (see [`DEFAULT_SHEAR_HYPOTHESES`]
-    /// and [`THOROUGH_SHEAR_HYPOTHESES`]; [`Self::set_face_search`] sets them too); empty, with no roll hypotheses either
-    /// ([`Self::set_roll_hypotheses`]): the paper's single detection pass. Non-finite values
-    /// are ignored.
+    /// Sets the shears whose de-sheared views are searched, by the quick and the thorough
+    /// search alike (defaults: [`DEFAULT_SHEAR_HYPOTHESES`], and [`THOROUGH_SHEAR_HYPOTHESES`],
+    /// which [`Self::set_face_search`] sets again: call this after it); empty, with no roll
+    /// hypotheses either ([`Self::set_roll_hypotheses`]): the paper's single detection pass.
+    /// Non-finite values are ignored.
     pub fn set_shear_hypotheses(&mut self, hypotheses: &[f64]) {
         self.shear_hypotheses = hypotheses
             .iter()
             .copied()
             .filter(|k| k.is_finite())
             .collect();
+        if let Some(thorough) = self.thorough.as_mut() {
+            thorough.shear_hypotheses = self.shear_hypotheses.clone();
+        }
     }
 
     /// Sets the head rolls (degrees) whose turned views are searched after the de-sheared ones
@@ -599,7 +607,10 @@ impl Unshear {
     /// to the image as it is are searched first, and farther ones only if those fail, so a face
     /// is measured from the least warped view that finds it.
     fn hypothesis_groups(&self) -> Vec<Vec<f64>> {
-        groups_by_magnitude(&self.shear_hypotheses)
+        let shears = self
+            .thorough_detectors()
+            .map_or(&self.shear_hypotheses, |t| &t.shear_hypotheses);
+        groups_by_magnitude(shears)
     }
 
     /// The main detector (boxes as they are; the lenient one of [`FaceSearch::Thorough`] when
@@ -1708,7 +1719,12 @@ mod tests {
         let floor = THOROUGH_VIEW_MIN_FACE;
         assert_eq!(t.views.params().min_size, (floor, floor));
         assert_eq!(u.roll_hypotheses, THOROUGH_ROLL_HYPOTHESES.to_vec());
-        assert_eq!(u.shear_hypotheses, THOROUGH_SHEAR_HYPOTHESES.to_vec());
+        assert_eq!(t.shear_hypotheses, THOROUGH_SHEAR_HYPOTHESES.to_vec());
+        assert_eq!(
+            u.hypothesis_groups(),
+            vec![vec![0.15, -0.15], vec![0.3, -0.3], vec![0.45, -0.45]]
+        );
+        assert_eq!(u.shear_hypotheses, DEFAULT_SHEAR_HYPOTHESES.to_vec());
         assert_eq!(
             u.detector.params().min_neighbors,
             3,
@@ -1719,6 +1735,10 @@ mod tests {
         assert!(
             u.thorough_detectors().is_none(),
             "the filters cannot judge boxes"
+        );
+        assert_eq!(
+            u.hypothesis_groups(),
+            vec![vec![0.3, -0.3], vec![0.5, -0.5]]
         );
         u.set_locator(Locator::Network);
         u.set_face_search(FaceSearch::Quick);

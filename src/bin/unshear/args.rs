@@ -73,7 +73,8 @@ pub struct ModelArgs {
     pub no_shear_search: bool,
     /// Shears whose de-sheared views are searched (with --quick only when the image as it is
     /// gives no face with an accepted estimate), comma-separated [default:
-    /// 0.15,-0.15,0.3,-0.3,0.45,-0.45; with --quick 0.3,-0.3,0.5,-0.5].
+    /// 0.15,-0.15,0.3,-0.3,0.45,-0.45; with --quick 0.3,-0.3,0.5,-0.5, also the default of
+    /// --locator filters].
     #[arg(
         long,
         value_name = "K,...",
@@ -489,7 +490,7 @@ mod tests {
         };
         for expected in [
             format!(
-                "[default: {}; with --quick {}]",
+                "[default: {}; with --quick {},",
                 shown(&unshear::pipeline::THOROUGH_SHEAR_HYPOTHESES),
                 shown(&unshear::pipeline::DEFAULT_SHEAR_HYPOTHESES)
             ),
