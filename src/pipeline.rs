@@ -1810,15 +1810,20 @@ mod tests {
         assert!((s.x - 15.0).abs() < 1e-12 && (s.y - 22.5).abs() < 1e-12);
     }
 
-    #[test]
-    fn overlapping_detections_keep_the_strongest_and_least_warped() {
-        let d = |x: f64, neighbors: u32, view_k: f64| Detection {
+    /// A detection of a 100 px box at `x`, from the view de-sheared by `view_k`.
+    fn detection_at(x: f64, neighbors: u32, view_k: f64) -> Detection {
+        Detection {
             face_box: Rect::new(x, 0.0, 100.0, 100.0),
             view_k,
             view_roll: 0.0,
             neighbors,
             near_miss: false,
-        };
+        }
+    }
+
+    #[test]
+    fn overlapping_detections_keep_the_strongest_and_least_warped() {
+        let d = detection_at;
         // Two overlapping boxes (IoU 0.82) and one apart.
         let kept =
             strongest_of_overlapping(vec![d(0.0, 3, 0.0), d(10.0, 7, 0.3), d(300.0, 1, 0.5)]);
@@ -1842,13 +1847,7 @@ mod tests {
 
     #[test]
     fn a_group_of_overlapping_boxes_is_tried_strongest_first_one_box_per_view() {
-        let d = |x: f64, neighbors: u32, view_k: f64| Detection {
-            face_box: Rect::new(x, 0.0, 100.0, 100.0),
-            view_k,
-            view_roll: 0.0,
-            neighbors,
-            near_miss: false,
-        };
+        let d = detection_at;
         let groups = overlapping_groups(vec![
             d(0.0, 2, 0.0),
             d(400.0, 1, 0.0),
