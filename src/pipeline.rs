@@ -129,9 +129,9 @@ pub const FACE_REGION_MARGIN: f64 = 0.3;
 
 /// Shears whose de-sheared views the quick search ([`FaceSearch::Quick`]) tries when the
 /// image as it is gives no face with an accepted estimate (the thorough search's are
-/// [`THOROUGH_SHEAR_HYPOTHESES`]): the image is de-sheared by each and searched again. The frontal-face cascade tolerates about |k| = 0.15
-/// (detection falls from 92% unsheared to 89% at 0.20 and 68-74% at 0.40 on the Caltech
-/// development faces), so views de-sheared by +-0.3 and then, if those give no trusted face,
+/// [`THOROUGH_SHEAR_HYPOTHESES`]): the image is de-sheared by each and searched again. The
+/// frontal-face cascade tolerates about |k| = 0.15 (detection falls from 92% unsheared to 89%
+/// at 0.20 and 68-74% at 0.40 on the Caltech development faces), so views de-sheared by +-0.3 and then, if those give no trusted face,
 /// +-0.5 leave at most 0.1 of residual shear for every |k| from 0.2 to 0.6. Costs nothing on
 /// images where a face is found and measured at once, and one detection per hypothesis (on a
 /// canvas up to `0.5 * height` wider) where none is. Measured effect in the README's
