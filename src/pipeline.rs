@@ -235,7 +235,8 @@ pub const THOROUGH_MIN_NEIGHBORS: u32 = 1;
 /// the last stages; the network judges them more strictly ([`NEAR_MISS_MIN_FACE_SCORE`]).
 /// Measured on the 49 development faces missed at one of k = 0 / +-0.40 (README, *Detection
 /// under shear*): found 28 / 23 / 24 with no slack, 31 / 29 / 28 with 1 stage, 32 / 28 / 30
-/// with 2, 37 / 31 / 31 with 3, 36 / 32 / 31 with 5 (at 1.3 times 3's time).
+/// with 2, 37 / 31 / 31 with 3, 36 / 32 / 31 with 5 (5 stages: 1.17 times 3's time per image
+/// with the final build, README).
 pub const THOROUGH_STAGE_SLACK: u32 = 3;
 
 /// The network's face score a near miss of the detector (see [`THOROUGH_STAGE_SLACK`]) needs to
