@@ -149,6 +149,34 @@ pub const DEFAULT_SHEAR_HYPOTHESES: [f64; 4] = [0.3, -0.3, 0.5, -0.5];
 /// without turned views (`unshear estimate` on 1920x1080 noise), so they are not searched.
 pub const DEFAULT_ROLL_HYPOTHESES: [f64; 2] = [12.0, -12.0];
 
+/// Where the scale ladder of every other de-sheared view of the thorough search (+-0.15 and
+/// +-0.45) starts, in steps of the scale factor ([`DetectorParams::scale_offset`]): halfway
+/// between OpenCV's rungs.
+///
+/// A face the cascade barely sees is found at one scale and one resampling of the image or
+/// not at all, and a face sheared by `k` is searched mostly in the two views nearest to `k`.
+/// With neighbouring views on different ladders those two scan different scales, at no extra
+/// cost. Measured on the 928 Caltech development faces (README, *Detection under shear*). The
+/// turned views stay on OpenCV's ladder: with the turned view of 25 degrees on the half-step
+/// one as well, blurred noise gave a false face (face score 0.92, refused;
+/// `tests/end_to_end.rs::the_thorough_search_reports_no_false_faces`).
+pub const THOROUGH_HALF_STEP_LADDER: f64 = 0.5;
+
+/// The smallest head roll (degrees) of the thorough search's roll hypotheses whose turned view
+/// is also searched de-sheared ([`Unshear::detect_and_estimate`]): the cascade tolerates about
+/// 10 degrees of roll and |k| = 0.15 of shear, and a face rolled 12 degrees and sheared is
+/// found in a de-sheared view, one rolled 25 or 45 degrees only when turned as well.
+///
+/// Measured on the 928 Caltech development faces: of the ten rolled 25 degrees or more, the
+/// thirteen views alone found all ten at k = 0 but six at k = -0.40; with these views, all ten
+/// at each of the nine shears (README, *Detection under shear*).
+pub const TURNED_DESHEARED_MIN_ROLL: f64 = 20.0;
+
+/// The shears of the de-sheared turned views when no face of the image was accepted (when one
+/// was, its measured shear is used instead): one step each way, which leaves a true |k| of up
+/// to 0.45 within the cascade's tolerance of 0.15.
+pub const TURNED_DESHEARED_SHEARS: [f64; 2] = [0.3, -0.3];
+
 /// The shear (absolute) measured on the faces found in the image as it is from which the image
 /// de-sheared by it is searched for more faces ([`Unshear::detect_and_estimate`]). The
 /// cascade tolerates about |k| = 0.15, so below 0.1 the view would show nothing new.
@@ -173,11 +201,14 @@ pub enum FaceSearch {
     /// face found in a warped view, the search is quick with these turned views (and the quick
     /// search's de-sheared views, which found more sheared faces with the filters).
     ///
-    /// Measured on the 928 Caltech development faces (README, *Detection under shear*): 98.6 /
-    /// 98.1 / 98.1% found at k = 0 / +0.40 / -0.40, 98.1-98.9% at every |k| <= 0.40 (97.7 /
+    /// Neighbouring views scan different scales ([`THOROUGH_HALF_STEP_LADDER`]), and the turned
+    /// views of strong rolls are searched again de-sheared ([`TURNED_DESHEARED_MIN_ROLL`]).
+    ///
+    /// Measured on the 928 Caltech development faces (README, *Detection under shear*): 98.9 /
+    /// 98.6 / 98.7% found at k = 0 / +0.40 / -0.40, 98.6-99.1% at every |k| <= 0.40 (97.7 /
     /// 97.2 / 97.3% at the first three with eleven views and neither near misses nor several
-    /// boxes tried), against 94.9 / 94.2 / 94.1% with [`FaceSearch::Quick`], for about eight
-    /// times the time per image (thirteen detections instead of usually one).
+    /// boxes tried), against 94.9 / 94.2 / 94.1% with [`FaceSearch::Quick`], for many times the
+    /// time per image (thirteen to seventeen detections instead of usually one).
     #[default]
     Thorough,
     /// The image as it is; the de-sheared and turned views only when it gives no face with an
@@ -250,6 +281,27 @@ pub const NEAR_MISS_MIN_FACE_SCORE: f64 = 0.995;
 /// is not always the one the network crops well, and a face was lost when another view's box,
 /// added to the group, outranked the box that had shown it.
 pub const THOROUGH_BOX_TRIES: usize = 3;
+
+/// One view the face search scans: the image de-sheared by `k` about its middle row, then
+/// turned against a head roll of `roll` radians, scanned from the scale `scale_offset` steps up
+/// the detector's ladder ([`DetectorParams::scale_offset`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct View {
+    k: f64,
+    roll: f64,
+    scale_offset: f64,
+}
+
+impl View {
+    /// The view on OpenCV's scale ladder.
+    fn on_default_ladder(k: f64, roll: f64) -> Self {
+        Self {
+            k,
+            roll,
+            scale_offset: 0.0,
+        }
+    }
+}
 
 /// A detected face.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -604,6 +656,30 @@ impl Unshear {
         sheared.chain(turned).collect()
     }
 
+    /// Every view after the image as it is ([`Self::view_groups`], in search order). With
+    /// `alternate_ladders` (the thorough search) the de-sheared groups take turns on the
+    /// half-step scale ladder and OpenCV's, starting with the half-step one: see
+    /// [`THOROUGH_HALF_STEP_LADDER`]. The turned views stay on OpenCV's.
+    fn every_view(&self, alternate_ladders: bool) -> Vec<View> {
+        self.view_groups()
+            .into_iter()
+            .enumerate()
+            .flat_map(|(i, group)| {
+                let de_sheared = group.iter().all(|&(_, roll)| roll == 0.0);
+                let scale_offset = if alternate_ladders && de_sheared && i % 2 == 0 {
+                    THOROUGH_HALF_STEP_LADDER
+                } else {
+                    0.0
+                };
+                group.into_iter().map(move |(k, roll)| View {
+                    k,
+                    roll,
+                    scale_offset,
+                })
+            })
+            .collect()
+    }
+
     /// The shear hypotheses in groups of equal magnitude, the smallest first: the views nearest
     /// to the image as it is are searched first, and farther ones only if those fail, so a face
     /// is measured from the least warped view that finds it.
@@ -648,24 +724,38 @@ impl Unshear {
         gray: &GrayImage,
         hypotheses: &[(f64, f64)],
     ) -> Vec<Detection> {
-        strongest_of_overlapping(self.detect_in_views(pass, gray, hypotheses))
+        let views: Vec<View> = hypotheses
+            .iter()
+            .map(|&(k, roll)| View::on_default_ladder(k, roll))
+            .collect();
+        strongest_of_overlapping(self.detect_in_views(pass, gray, &views))
     }
 
-    /// Every detection in the views de-sheared and turned by each of `hypotheses` (shear,
-    /// roll), moved back to `gray`, overlapping ones included.
+    /// Every detection in `views`, moved back to `gray`, overlapping ones included.
     fn detect_in_views(
         &self,
         pass: (&FaceDetector, f64),
         gray: &GrayImage,
-        hypotheses: &[(f64, f64)],
+        views: &[View],
     ) -> Vec<Detection> {
-        // One colour-model wrapper for every hypothesis (the warp takes a `DynamicImage`).
-        let view = DynamicImage::ImageLuma8(gray.clone());
+        // One colour-model wrapper for every view (the warp takes a `DynamicImage`).
+        let image = DynamicImage::ImageLuma8(gray.clone());
         // The views are independent detections: in parallel, so that one image's search uses
         // every core (a batch of images keeps them busy anyway; rayon shares the pool).
-        let found: Vec<Vec<Detection>> = hypotheses
+        let found: Vec<Vec<Detection>> = views
             .par_iter()
-            .map(|&(k, roll)| self.detect_desheared(pass, &view, k, roll))
+            .map(|view| {
+                if view.scale_offset == pass.0.params().scale_offset {
+                    return self.detect_desheared(pass, &image, view.k, view.roll);
+                }
+                // The same cascade (shared, not copied) on the view's own scale ladder.
+                let params = DetectorParams {
+                    scale_offset: view.scale_offset,
+                    ..*pass.0.params()
+                };
+                let detector = FaceDetector::new(pass.0.cascade().clone(), params);
+                self.detect_desheared((&detector, pass.1), &image, view.k, view.roll)
+            })
             .collect();
         found.into_iter().flatten().collect()
     }
@@ -820,6 +910,11 @@ impl Unshear {
     /// When the main detector's faces (as they are and in the retries) still give no accepted
     /// estimate, the fallback detector, if set, goes through the same two steps and its faces
     /// join the others.
+    ///
+    /// The thorough search ([`FaceSearch::Thorough`]) instead searches every view at once, and
+    /// then the turned views of strong rolls again in the image de-sheared by the shear its faces
+    /// measured (or one step each way if none was accepted): a face both rolled and sheared is
+    /// upright in neither kind of view alone.
     pub fn detect_and_estimate(&self, gray: &GrayImage) -> Vec<(Rect, Option<FaceReport>)> {
         // With the network, a box that gives no face (its face score below MIN_FACE_SCORE, or
         // no crop) is dropped: the network looked and saw no face there.
@@ -847,7 +942,16 @@ impl Unshear {
         let mut all: Vec<(Rect, Option<FaceReport>)> = Vec::new();
         let thorough = self.thorough_detectors();
         if self.search_every_view || thorough.is_some() {
-            let views: Vec<(f64, f64)> = self.view_groups().into_iter().flatten().collect();
+            // A face is the first of its group's boxes that the network takes for one: the
+            // strongest box can be cropped worse than a weaker one from another view.
+            let faces = |mut found: Vec<Detection>| {
+                found.retain(measurable);
+                overlapping_groups(found)
+                    .into_iter()
+                    .filter_map(|group| tries_of_group(group).into_iter().find_map(estimate))
+                    .collect::<Vec<_>>()
+            };
+            let views = self.every_view(thorough.is_some());
             for (i, pass) in self.detector_passes().enumerate() {
                 let views_pass = match (i, thorough) {
                     (0, Some(t)) => (&t.views, 1.0),
@@ -855,16 +959,31 @@ impl Unshear {
                 };
                 let mut found = self.detect_as_is(pass, gray);
                 found.extend(self.detect_in_views(views_pass, gray, &views));
-                found.retain(measurable);
-                // A face is the first of its group's boxes that the network takes for one: the
-                // strongest box can be cropped worse than a weaker one from another view.
-                all.extend(
-                    overlapping_groups(found)
-                        .into_iter()
-                        .filter_map(|group| tries_of_group(group).into_iter().find_map(estimate)),
-                );
+                all.extend(faces(found));
                 if accepted(&all) {
                     break;
+                }
+            }
+            if let Some(t) = thorough {
+                let views = self.turned_desheared_views(&all);
+                if !views.is_empty() {
+                    // These views look for faces not found yet: a box, or the face it gives,
+                    // holding the eyes of a face already found is that face again.
+                    let found_eyes: Vec<(Point, Point)> = all
+                        .iter()
+                        .filter_map(|(_, r)| r.map(|r| (r.right_eye, r.left_eye)))
+                        .collect();
+                    let holds_found = |b: &Rect| {
+                        found_eyes
+                            .iter()
+                            .any(|&(r, l)| b.contains(r) && b.contains(l))
+                    };
+                    let mut found = self.detect_in_views((&t.views, 1.0), gray, &views);
+                    found.retain(|d| !holds_found(&d.face_box));
+                    let new = faces(found).into_iter().filter(|(b, r)| {
+                        !holds_found(b) && !r.as_ref().is_some_and(|r| holds_found(&r.face_box))
+                    });
+                    all.extend(new.collect::<Vec<_>>());
                 }
             }
             return most_confident_of_overlapping(all);
@@ -906,6 +1025,33 @@ impl Unshear {
             }
         }
         most_confident_of_overlapping(all)
+    }
+
+    /// The views, de-sheared and turned at once, that the thorough search adds after its
+    /// thirteen: a strongly rolled face that is also sheared is neither upright in a turned view
+    /// (still sheared) nor in a de-sheared one (still rolled). Each roll hypothesis of at least
+    /// [`TURNED_DESHEARED_MIN_ROLL`] degrees is combined with the shear measured on the accepted
+    /// faces of `found` (rolling-shutter skew is one per frame) when that is at least
+    /// [`MEASURED_VIEW_MIN_SHEAR`], or with each of [`TURNED_DESHEARED_SHEARS`] when no face was
+    /// accepted; none when the faces found measure no shear. Each keeps its turned view's scale
+    /// ladder (OpenCV's).
+    fn turned_desheared_views(&self, found: &[(Rect, Option<FaceReport>)]) -> Vec<View> {
+        let reports: Vec<FaceReport> = found.iter().filter_map(|(_, r)| *r).collect();
+        let shears = match combined_shear(&reports) {
+            Some(k) if k.abs() >= MEASURED_VIEW_MIN_SHEAR => vec![k],
+            Some(_) => return Vec::new(),
+            None => TURNED_DESHEARED_SHEARS.to_vec(),
+        };
+        // Each turned view keeps its scale ladder (`every_view`).
+        let turned: Vec<View> = self
+            .every_view(true)
+            .into_iter()
+            .filter(|v| v.k == 0.0 && v.roll.to_degrees().abs() >= TURNED_DESHEARED_MIN_ROLL)
+            .collect();
+        shears
+            .iter()
+            .flat_map(|&k| turned.iter().map(move |v| View { k, ..*v }))
+            .collect()
     }
 
     /// Faces of `found`'s image that the image de-sheared by the shear measured on `found`'s
@@ -1782,6 +1928,79 @@ mod tests {
         );
         unshear.set_roll_hypotheses(&[]);
         assert_eq!(unshear.view_groups(), vec![vec![(0.3, 0.0), (-0.3, 0.0)]]);
+    }
+
+    #[test]
+    fn the_thorough_views_take_turns_on_the_two_scale_ladders() {
+        let unshear = Unshear::with_defaults().expect("built-in models");
+        let views = unshear.every_view(true);
+        let groups = unshear.view_groups();
+        assert_eq!(views.len(), groups.iter().map(Vec::len).sum::<usize>());
+        let mut at = 0;
+        for (i, group) in groups.iter().enumerate() {
+            let de_sheared = group.iter().all(|&(_, roll)| roll == 0.0);
+            let ladder = if de_sheared && i % 2 == 0 {
+                THOROUGH_HALF_STEP_LADDER
+            } else {
+                0.0
+            };
+            for &(k, roll) in group {
+                assert_eq!(
+                    views[at],
+                    View {
+                        k,
+                        roll,
+                        scale_offset: ladder
+                    },
+                    "group {i}"
+                );
+                at += 1;
+            }
+        }
+        // The views of +-0.15 and +-0.3 (the two nearest to k = 0.2) differ in ladder, and so
+        // do +-0.3 and +-0.45; the turned views are on OpenCV's.
+        assert_eq!(views[0].scale_offset, THOROUGH_HALF_STEP_LADDER);
+        assert_eq!(views[2].scale_offset, 0.0);
+        assert_eq!(views[4].scale_offset, THOROUGH_HALF_STEP_LADDER);
+        assert!(views
+            .iter()
+            .filter(|v| v.roll != 0.0)
+            .all(|v| v.scale_offset == 0.0));
+        // Without the alternation (the filters' search of every view), OpenCV's ladder only.
+        assert!(unshear
+            .every_view(false)
+            .iter()
+            .all(|v| v.scale_offset == 0.0));
+    }
+
+    #[test]
+    fn strong_rolls_are_searched_again_de_sheared_by_the_measured_shear() {
+        let unshear = Unshear::with_defaults().expect("built-in models");
+        let strong: Vec<View> = unshear
+            .every_view(true)
+            .into_iter()
+            .filter(|v| v.k == 0.0 && v.roll.to_degrees().abs() >= TURNED_DESHEARED_MIN_ROLL)
+            .collect();
+        assert_eq!(strong.len(), 4, "+-25 and +-45 degrees: {strong:?}");
+        let found = |k: Option<f64>| vec![(Rect::new(0.0, 0.0, 10.0, 10.0), Some(face(k, 0.8)))];
+        // An accepted face measured 0.37: the strong rolls at that shear, each on its ladder.
+        let views = unshear.turned_desheared_views(&found(Some(0.37)));
+        assert_eq!(views.len(), strong.len());
+        for (v, s) in views.iter().zip(&strong) {
+            assert_eq!(*v, View { k: 0.37, ..*s });
+        }
+        // A shear the cascade tolerates: nothing new to see.
+        assert!(unshear
+            .turned_desheared_views(&found(Some(0.05)))
+            .is_empty());
+        // No accepted face (refused, or none at all): one step each way.
+        for nothing in [found(None), Vec::new()] {
+            let views = unshear.turned_desheared_views(&nothing);
+            assert_eq!(views.len(), TURNED_DESHEARED_SHEARS.len() * strong.len());
+            for k in TURNED_DESHEARED_SHEARS {
+                assert_eq!(views.iter().filter(|v| v.k == k).count(), strong.len());
+            }
+        }
     }
 
     #[test]

@@ -6,6 +6,7 @@
 //!
 //! * Scales are `1, s, s², …` (accumulated in `f64`, then stored as `f32`) while the scaled
 //!   window `round(win · factor)` fits in the image; `min_size`/`max_size` filter that list.
+//!   (Our one addition, off by default: `scale_offset` starts the ladder at `s^offset`.)
 //! * For each scale the *image* is shrunk to `round(size / factor)` with the bit-exact bilinear
 //!   resize and the 20×20 window slides over it: step 2 in x and y below factor 2, step 1 from
 //!   2 on; a window rejected by the very first stage makes the next x position be skipped too.
@@ -42,6 +43,10 @@ pub struct DetectorParams {
     /// windows that reach the last stages). 0, the default, gives none. The boxes of
     /// [`FaceDetector::detect`] and [`FaceDetector::detect_with_neighbors`] never depend on it.
     pub stage_slack: u32,
+    /// Where the scale ladder starts, in steps of `scale_factor`: the first scale is
+    /// `scale_factor^scale_offset` times the cascade window (0, the default, is OpenCV's ladder;
+    /// 0.5 puts every scale halfway between two of its rungs). Must be finite and >= 0.
+    pub scale_offset: f64,
 }
 
 impl Default for DetectorParams {
@@ -52,6 +57,7 @@ impl Default for DetectorParams {
             min_size: (0, 0),
             max_size: None,
             stage_slack: 0,
+            scale_offset: 0.0,
         }
     }
 }
@@ -181,6 +187,9 @@ pub(crate) fn plan_scales(img: (u32, u32), win: (u32, u32), p: &DetectorParams) 
     if !(p.scale_factor.is_finite() && p.scale_factor > 1.0) {
         return Vec::new();
     }
+    if !(p.scale_offset.is_finite() && p.scale_offset >= 0.0) {
+        return Vec::new();
+    }
     if img.0 < win.0 || img.1 < win.1 {
         return Vec::new();
     }
@@ -190,7 +199,7 @@ pub(crate) fn plan_scales(img: (u32, u32), win: (u32, u32), p: &DetectorParams) 
     };
     let round = |v: f64| v.round_ties_even() as i64;
     let mut all = Vec::new();
-    let mut factor = 1.0f64;
+    let mut factor = p.scale_factor.powf(p.scale_offset);
     loop {
         let ws = (
             round(f64::from(win.0) * factor),
@@ -539,6 +548,32 @@ mod tests {
             ..p
         };
         assert!(plan_scales((400, 300), (20, 20), &bad).is_empty());
+    }
+
+    /// A half-step offset puts every scale between two of the default ladder's, geometrically.
+    #[test]
+    fn scale_offset_shifts_the_ladder_between_the_default_rungs() {
+        let p = DetectorParams::default();
+        let half = DetectorParams {
+            scale_offset: 0.5,
+            ..p
+        };
+        let rungs = plan_scales((400, 300), (20, 20), &p);
+        let between = plan_scales((400, 300), (20, 20), &half);
+        assert!((between[0] - 1.1f32.sqrt()).abs() < 1e-6);
+        for (i, b) in between.iter().enumerate() {
+            let mid = (rungs[i] * rungs[i + 1]).sqrt();
+            assert!((b / mid - 1.0).abs() < 1e-5, "scale {i}: {b} against {mid}");
+        }
+        // The windows still stop at the image: 20 * 1.1^(n + 0.5) <= 300.
+        assert_eq!(between.len(), rungs.len() - 1);
+        for bad in [-0.5, f64::NAN, f64::INFINITY] {
+            let p = DetectorParams {
+                scale_offset: bad,
+                ..p
+            };
+            assert!(plan_scales((400, 300), (20, 20), &p).is_empty(), "{bad}");
+        }
     }
 
     /// The tiny cascade fires where the left half of a 4x4 window is much brighter than the

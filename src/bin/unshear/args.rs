@@ -98,7 +98,7 @@ pub struct ModelArgs {
     #[arg(long)]
     pub no_roll_search: bool,
     /// The quick face search: the image as it is, and the de-sheared and turned views only when
-    /// it gives no trusted face. About eight times faster than the default thorough search
+    /// it gives no trusted face. Six to nine times faster than the default thorough search
     /// (every view of every image, heads rolled up to about 55 degrees, the network judging
     /// lenient detections and the detector's near misses), which finds about 4% more faces
     /// (see the README's *Detection under shear*).
