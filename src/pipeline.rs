@@ -981,9 +981,10 @@ impl Unshear {
                     };
                     let mut found = self.detect_in_views((&t.views, 1.0), gray, &views);
                     found.retain(|d| !holds_found(&d.face_box));
-                    let new = faces(found).into_iter().filter(|(b, r)| {
-                        !holds_found(b) && !r.as_ref().is_some_and(|r| holds_found(&r.face_box))
-                    });
+                    // The boxes kept hold no found face; the face a box gave may still be one.
+                    let new = faces(found)
+                        .into_iter()
+                        .filter(|(_, r)| !r.as_ref().is_some_and(|r| holds_found(&r.face_box)));
                     all.extend(new.collect::<Vec<_>>());
                 }
             }
@@ -1037,8 +1038,7 @@ impl Unshear {
     /// accepted; none when the faces found measure no shear. Each keeps its turned view's scale
     /// ladder (OpenCV's).
     fn turned_desheared_views(&self, found: &[(Rect, Option<FaceReport>)]) -> Vec<View> {
-        let reports: Vec<FaceReport> = found.iter().filter_map(|(_, r)| *r).collect();
-        let shears = match combined_shear(&reports) {
+        let shears = match measured_shear(found) {
             Some(k) if k.abs() >= MEASURED_VIEW_MIN_SHEAR => vec![k],
             Some(_) => return Vec::new(),
             None => TURNED_DESHEARED_SHEARS.to_vec(),
@@ -1068,8 +1068,7 @@ impl Unshear {
         gray: &GrayImage,
         found: &[(Rect, Option<FaceReport>)],
     ) -> Vec<Detection> {
-        let reports: Vec<FaceReport> = found.iter().filter_map(|(_, r)| *r).collect();
-        let Some(k) = combined_shear(&reports) else {
+        let Some(k) = measured_shear(found) else {
             return Vec::new();
         };
         if k.abs() < MEASURED_VIEW_MIN_SHEAR {
@@ -1731,6 +1730,12 @@ pub fn network_confidence(found: &LocatedFace, face_box: Rect, model: &Confidenc
     } else {
         0.0
     }
+}
+
+/// [`combined_shear`] of the faces in `found` that gave an estimate.
+fn measured_shear(found: &[(Rect, Option<FaceReport>)]) -> Option<f64> {
+    let reports: Vec<FaceReport> = found.iter().filter_map(|(_, r)| *r).collect();
+    combined_shear(&reports)
 }
 
 /// The image's shear from its faces' accepted estimates: their confidence-weighted median (the
