@@ -169,8 +169,9 @@ pub const THOROUGH_HALF_STEP_LADDER: f64 = 0.5;
 ///
 /// Measured on the 928 Caltech development faces: of the ten rolled 25 degrees or more, the
 /// thirteen views alone found all ten at k = 0 but six at k = -0.40; with these views, all ten
-/// at each of the nine shears (README, *Detection under shear*; measured with the 25-degree
-/// turned views on the half-step ladder, see [`THOROUGH_HALF_STEP_LADDER`]).
+/// at eight of the nine shears and eight at -0.40 (README, *Detection under shear*; all ten at
+/// -0.40 too with the 25-degree turned views on the half-step ladder, not kept for the reason
+/// [`THOROUGH_HALF_STEP_LADDER`] gives).
 pub const TURNED_DESHEARED_MIN_ROLL: f64 = 20.0;
 
 /// The shears of the de-sheared turned views when no face of the image was accepted (when one
@@ -206,7 +207,7 @@ pub enum FaceSearch {
     /// views of strong rolls are searched again de-sheared ([`TURNED_DESHEARED_MIN_ROLL`]).
     ///
     /// Measured on the 928 Caltech development faces (README, *Detection under shear*): 98.9 /
-    /// 98.5 / 98.4% found at k = 0 / +0.40 / -0.40, 98.4-99.1% at every |k| <= 0.40 (97.7 /
+    /// 98.4 / 98.4% found at k = 0 / +0.40 / -0.40, 98.4-99.1% at every |k| <= 0.40 (97.7 /
     /// 97.2 / 97.3% at the first three with eleven views and neither near misses nor several
     /// boxes tried), against 94.9 / 94.2 / 94.1% with [`FaceSearch::Quick`], for many times the
     /// time per image (thirteen to seventeen detections instead of usually one).
