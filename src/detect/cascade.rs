@@ -64,6 +64,18 @@ pub(crate) struct TreeNode {
     pub threshold: f32,
 }
 
+/// The shape all of a cascade's trees share, if any.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum TreeShape {
+    /// One node each (a stump), as in `haarcascade_frontalface_default.xml`.
+    Stumps,
+    /// Two nodes each: a root with one leaf and one node child (node 1 of the tree), whose
+    /// children are both leaves, as in `haarcascade_frontalface_alt2.xml`.
+    RootAndOneChild,
+    /// Anything else: walked node by node.
+    Mixed,
+}
+
 /// One weak classifier: a run of nodes and a run of leaves in the cascade's flat arrays.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct Tree {
@@ -89,8 +101,8 @@ pub(crate) struct CascadeData {
     pub nodes: Vec<TreeNode>,
     pub leaves: Vec<f32>,
     pub features: Vec<Feature>,
-    /// Every tree is a single node (a stump): the evaluator then takes a faster path.
-    pub stumps_only: bool,
+    /// How every tree is shaped, which lets the evaluator walk them without branches.
+    pub shape: TreeShape,
     pub has_tilted: bool,
 }
 
@@ -381,12 +393,36 @@ fn finish(
     if stages.is_empty() {
         return err("cascade has no stages");
     }
-    let stumps_only = trees.iter().enumerate().all(|(i, t)| {
+    // Each tree's nodes (trees are validated, so these runs are inside `nodes`).
+    let tree_nodes = |i: usize, t: &Tree| {
         let end = trees
             .get(i + 1)
-            .map_or(nodes.len() as u32, |n| n.first_node);
-        end - t.first_node == 1
-    });
+            .map_or(nodes.len(), |n| n.first_node as usize);
+        nodes.get(t.first_node as usize..end).unwrap_or(&[])
+    };
+    let is_leaf = |child: i32| child <= 0;
+    let shape = if trees
+        .iter()
+        .enumerate()
+        .all(|(i, t)| tree_nodes(i, t).len() == 1)
+    {
+        TreeShape::Stumps
+    } else if trees
+        .iter()
+        .enumerate()
+        .all(|(i, t)| match tree_nodes(i, t) {
+            [root, child] => {
+                ((is_leaf(root.left) && root.right == 1) || (root.left == 1 && is_leaf(root.right)))
+                    && is_leaf(child.left)
+                    && is_leaf(child.right)
+            }
+            _ => false,
+        })
+    {
+        TreeShape::RootAndOneChild
+    } else {
+        TreeShape::Mixed
+    };
     let has_tilted = features.iter().any(|f| f.tilted);
     Ok(CascadeData {
         window,
@@ -395,7 +431,7 @@ fn finish(
         nodes,
         leaves,
         features,
-        stumps_only,
+        shape,
         has_tilted,
     })
 }
@@ -602,7 +638,7 @@ pub(crate) mod tests {
         assert_eq!(c.stage_count(), 20);
         assert!(!c.has_tilted_features());
         // alt2 uses depth-2 trees: 2 nodes and 3 leaves each.
-        assert!(!c.data.stumps_only);
+        assert_eq!(c.data.shape, TreeShape::RootAndOneChild);
         assert_eq!(c.data.nodes.len(), 2 * c.tree_count());
         assert_eq!(c.data.leaves.len(), 3 * c.tree_count());
         assert_eq!(c.feature_count(), c.data.nodes.len());
@@ -617,7 +653,7 @@ pub(crate) mod tests {
         let c = Cascade::frontal_face_default();
         assert_eq!(c.window_size(), (24, 24));
         assert_eq!(c.stage_count(), 25);
-        assert!(c.data.stumps_only);
+        assert_eq!(c.data.shape, TreeShape::Stumps);
         assert!(Arc::ptr_eq(&c.data, &Cascade::frontal_face_default().data));
     }
 
@@ -629,7 +665,7 @@ pub(crate) mod tests {
             (c.stage_count(), c.tree_count(), c.feature_count()),
             (1, 1, 1)
         );
-        assert!(c.data.stumps_only);
+        assert_eq!(c.data.shape, TreeShape::Stumps);
         assert_eq!(c.data.nodes[0].left, 0);
         assert_eq!(c.data.nodes[0].right, -1);
         assert_eq!(c.data.features[0].rects[1].weight, -1.0);

@@ -444,21 +444,33 @@ fn conv(layer: &Conv, input: &Tensor, output: &mut Tensor, columns: &mut Vec<f32
             for ky in 0..k {
                 for kx in 0..k {
                     let row = &mut columns[((ci * k + ky) * k + kx) * plane..][..plane];
+                    // Output columns whose input column `ox * s + kx - pad` is inside the row;
+                    // the rest read the zero padding. (Ranges rather than a test per pixel:
+                    // this copy took longer than the matrix product itself.)
+                    let lo = pad.saturating_sub(kx).div_ceil(s).min(wo);
+                    let hi = (w + pad)
+                        .checked_sub(kx + 1)
+                        .map_or(0, |last| last / s + 1)
+                        .clamp(lo, wo);
+                    let first = (lo * s + kx).saturating_sub(pad);
                     for oy in 0..ho {
                         let iy = (oy * s + ky) as isize - pad as isize;
                         let out_row = &mut row[oy * wo..(oy + 1) * wo];
-                        if iy < 0 || iy >= h as isize {
+                        if iy < 0 || iy >= h as isize || lo == hi {
                             out_row.fill(0.0);
                             continue;
                         }
                         let in_row = &channel[iy as usize * w..(iy as usize + 1) * w];
-                        for (ox, o) in out_row.iter_mut().enumerate() {
-                            let ix = (ox * s + kx) as isize - pad as isize;
-                            *o = if ix < 0 || ix >= w as isize {
-                                0.0
-                            } else {
-                                in_row[ix as usize]
-                            };
+                        out_row[..lo].fill(0.0);
+                        out_row[hi..].fill(0.0);
+                        let inside = &mut out_row[lo..hi];
+                        if s == 1 {
+                            inside.copy_from_slice(&in_row[first..first + inside.len()]);
+                        } else {
+                            for (o, &v) in inside.iter_mut().zip(in_row[first..].iter().step_by(s))
+                            {
+                                *o = v;
+                            }
                         }
                     }
                 }
@@ -648,6 +660,10 @@ mod tests {
             (3, 5, 3, 1, 7, 9, false),
             (4, 2, 1, 1, 5, 6, false),
             (2, 3, 3, 2, 7, 5, true),
+            // Rows of one and two pixels: the padding covers all or most of each row.
+            (2, 3, 3, 1, 3, 1, false),
+            (2, 3, 3, 2, 2, 2, false),
+            (1, 2, 3, 2, 1, 1, true),
         ] {
             let l = layer(ci, co, k, s, relu);
             let x = tensor(ci, h, w);
