@@ -99,7 +99,7 @@ fn bilinear(src: &[u8], w: usize, h: usize, x: f64, y: f64) -> u8 {
     if !(x > -1.0 && y > -1.0 && x < w as f64 && y < h as f64) {
         return 0;
     }
-    let (x0, y0) = (x.floor(), y.floor());
+    let (x0, y0) = (floor(x), floor(y));
     let (fx, fy) = (x - x0, y - y0);
     let at = |xi: f64, yi: f64| -> f64 {
         if xi < 0.0 || yi < 0.0 || xi >= w as f64 || yi >= h as f64 {
@@ -110,12 +110,69 @@ fn bilinear(src: &[u8], w: usize, h: usize, x: f64, y: f64) -> u8 {
     };
     let top = at(x0, y0) * (1.0 - fx) + at(x0 + 1.0, y0) * fx;
     let bottom = at(x0, y0 + 1.0) * (1.0 - fx) + at(x0 + 1.0, y0 + 1.0) * fx;
-    (top * (1.0 - fy) + bottom * fy).round().clamp(0.0, 255.0) as u8
+    // A blend of grey levels with weights in [0, 1]: never negative.
+    round_non_negative(top * (1.0 - fy) + bottom * fy).min(255.0) as u8
+}
+
+/// `v.floor()` for `|v| < 2^52`. `f64::floor` and `f64::round` are calls into libm on the
+/// baseline x86-64 target (no rounding instruction), and three per pixel were a fifth of the
+/// rotation's time; truncation is one instruction.
+fn floor(v: f64) -> f64 {
+    let t = v as i64 as f64;
+    if t > v {
+        t - 1.0
+    } else {
+        t
+    }
+}
+
+/// `v.round()` (halves away from zero) for `0 <= v < 2^52`: `v - trunc(v)` is exact there.
+fn round_non_negative(v: f64) -> f64 {
+    let t = v as i64 as f64;
+    if v - t >= 0.5 {
+        t + 1.0
+    } else {
+        t
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn floor_and_round_match_the_standard_library() {
+        let cases = [
+            -0.999_999,
+            -0.5,
+            -0.0,
+            0.0,
+            0.25,
+            0.5,
+            0.499_999_999_999_999_94,
+            1.0,
+            1.5,
+            2.5,
+            254.5,
+            254.499_999_999,
+            255.0,
+            1_919.999_999_999_9,
+            4.0e15,
+        ];
+        for v in cases {
+            assert_eq!(floor(v), v.floor(), "floor {v}");
+            if v >= 0.0 {
+                assert_eq!(round_non_negative(v), v.round(), "round {v}");
+            }
+        }
+        let mut x = 0.123_f64;
+        for _ in 0..10_000 {
+            x = (x * 7.31 + 0.137) % 300.0 - 1.0;
+            assert_eq!(floor(x), x.floor(), "floor {x}");
+            let v = x.abs();
+            assert_eq!(round_non_negative(v), v.round(), "round {v}");
+        }
+    }
 
     #[test]
     fn points_round_trip_and_the_centre_stays() {
