@@ -769,16 +769,21 @@ mod tests {
         assert!(n > 3);
     }
 
-    /// Scanning in many thin bands finds exactly the windows that one band over the whole image
-    /// finds, at every scale (the band edges fall in different places at each scale).
-    #[test]
-    fn bands_do_not_change_the_hits() {
+    /// The committed Yale fixture, grey as OpenCV converts it.
+    fn fixture_gray() -> GrayImage {
         let img = image::open(
             std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
                 .join("tests/fixtures/faces/subject01.normal.jpeg"),
         )
         .expect("fixture");
-        let gray = crate::detect::to_gray_opencv(&img);
+        crate::detect::to_gray_opencv(&img)
+    }
+
+    /// Scanning in many thin bands finds exactly the windows that one band over the whole image
+    /// finds, at every scale (the band edges fall in different places at each scale).
+    #[test]
+    fn bands_do_not_change_the_hits() {
+        let gray = fixture_gray();
         let det = FaceDetector::frontal_face();
         let data = &*det.cascade.data;
         let factors = plan_scales(gray.dimensions(), data.window, &det.params);
@@ -797,12 +802,7 @@ mod tests {
     /// or the stage that rejected it) of the node-by-node walk.
     #[test]
     fn two_node_trees_walked_without_branches_give_the_same_verdicts() {
-        let img = image::open(
-            std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-                .join("tests/fixtures/faces/subject01.normal.jpeg"),
-        )
-        .expect("fixture");
-        let gray = crate::detect::to_gray_opencv(&img);
+        let gray = fixture_gray();
         let det = FaceDetector::frontal_face();
         let fast = &*det.cascade.data;
         assert_eq!(fast.shape, TreeShape::RootAndOneChild);

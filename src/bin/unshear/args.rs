@@ -98,7 +98,7 @@ pub struct ModelArgs {
     #[arg(long)]
     pub no_roll_search: bool,
     /// The quick face search: the image as it is, and the de-sheared and turned views only when
-    /// it gives no trusted face. On a 1920x1080 frame with a face 5.6 to 8.5 times faster than
+    /// it gives no trusted face. On a 1920x1080 frame with a face 5.7 to 8.7 times faster than
     /// the default thorough search (every view of every image, heads rolled up to about 55
     /// degrees, the network judging lenient detections and the detector's near misses), about as
     /// slow on one without; the thorough search finds about 4% more faces (see the README's
