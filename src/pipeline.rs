@@ -1622,8 +1622,8 @@ fn tries_of_group(group: Vec<Detection>) -> Vec<Detection> {
 }
 
 /// How close (in eye distances, the smaller of the two faces') the eye midpoints of two
-/// estimates must be for them to be one face found twice ([`same_face`]). Two people's eye
-/// midpoints are two or more eye distances apart even in a crowd.
+/// estimates must be for them to be one face found twice (`same_face` in this module). Two
+/// people's eye midpoints are two or more eye distances apart even in a crowd.
 pub const SAME_FACE_EYE_DISTANCES: f64 = 0.5;
 
 /// Whether two estimates located the same face: their eye midpoints within

@@ -2,8 +2,9 @@
 //! frame whose placement, scale, shear and roll are drawn at random around what the pipeline
 //! will ask for, with the annotated points and the crop's shear as labels.
 //!
-//! The crops are cut with the same code the run-time locator uses ([`CropFrame::render`]), so
-//! the network is trained on exactly what it will see. The distributions:
+//! The crops are cut with the same code the run-time locator uses
+//! ([`super::CropFrame::render`]), so the network is trained on exactly what it will see. The
+//! distributions:
 //!
 //! * **placement**: the frame is built around the annotated eyes ([`frame_around_eyes`]) with
 //!   the eyes' midpoint moved by a normal offset of [`CENTRE_JITTER`] eye distances (std) each
@@ -84,7 +85,7 @@ pub struct ExportOptions {
     /// Faces whose eye distance is at or above this are skipped (to keep the faces an
     /// evaluation measures out of training).
     pub max_eye_distance: f64,
-    /// Non-face crops per photo and kind (see [`negative_samples`]; 0: none).
+    /// Non-face crops per photo and kind (see `negative_samples` in this module; 0: none).
     pub negatives_per_image: usize,
     /// Seed of the generators.
     pub seed: u64,
@@ -237,9 +238,9 @@ fn face_samples(
 }
 
 /// Cuts the training crops of every face of `faces` within the options' eye-distance range,
-/// and the non-face crops ([`negative_samples`]), and writes them to `out_dir`: `crops.u8` (each
-/// crop `size * size` bytes, row-major), `labels.f32` ([`LABEL_FIELDS`] per crop) and
-/// `meta.json` (the options and counts).
+/// and the non-face crops (`negative_samples` in this module), and writes them to `out_dir`:
+/// `crops.u8` (each crop `size * size` bytes, row-major), `labels.f32` ([`LABEL_FIELDS`] per
+/// crop) and `meta.json` (the options and counts).
 ///
 /// Images holding a face at or above `max_eye_distance` are skipped whole, faces of every
 /// size and background alike, so that no pixel of an image the accuracy tables measure is
