@@ -322,7 +322,8 @@ impl TwoNodeTree {
     /// The leaf value a window reaches. Both nodes are scored and the leaf picked without a
     /// branch: whether a window goes on to the second node is a coin toss the processor
     /// mispredicts, which cost more than scoring the second node. (This and the layout took
-    /// detection on a 1920x1080 frame from 340 to 262 ms on one core, same windows found.)
+    /// `cargo bench --bench pipeline`'s detection of a 1920x1080 frame from 365 to 276 ms on one
+    /// core, with the same windows found; README, *Performance*.)
     #[inline(always)]
     fn leaf(&self, win: &[i32], inv: f32) -> f64 {
         let v0 = self.root.value(win) * inv;
