@@ -127,6 +127,26 @@ impl Default for Budget {
 /// Change of the estimated shear below which [`locate`] stops re-cropping.
 pub const SHEAR_TOLERANCE: f64 = 0.001;
 
+/// How many crops [`locate`] makes of something that is not a face before it gives up: when
+/// the face score of each of the first `NO_FACE_PASSES` crops is below [`NO_FACE_SCORE`], the
+/// last reading is returned (its face score tells the caller there is no face) instead of
+/// re-cropping up to the budget.
+///
+/// Most of the boxes the thorough face search asks the network to judge are not faces, and
+/// their crops never settle, so they ran to [`MAX_PASSES`]. Measured on the first 150 Caltech
+/// development faces at k = 0 and +0.40 (2416 runs of the network): 1923 runs ended on no face
+/// (score under 0.5); stopping after 3 crops scored under 0.001 saves 29% of all crops. 10 of
+/// the 435 runs that ended on a face score of 0.9 or more are cut: walks from a box off the
+/// face (rolls read up to 80 degrees on the way) that reached a face score only at the 4th to
+/// 8th crop. On all 928 development faces at k = 0 and +-0.40 the same faces were found as
+/// without the early stop, and one estimate of the 2784 changed, by 0.007 (README,
+/// *Performance*).
+pub const NO_FACE_PASSES: usize = 3;
+
+/// The face score under which a crop counts as showing no face for [`NO_FACE_PASSES`]: the
+/// network's face score on non-face crops is mostly below 0.001, on faces mostly above 0.9.
+pub const NO_FACE_SCORE: f64 = 0.001;
+
 /// Change of the estimated roll (radians, about 0.6 degrees) below which [`locate`] stops.
 pub const ROLL_TOLERANCE: f64 = 0.01;
 
@@ -199,8 +219,9 @@ fn upright_distance(a: Point, b: Point, k: f64) -> f64 {
 /// estimated from what it found, and the face is cropped again around the eyes found with
 /// that shear and roll removed, until the estimate stops changing ([`SHEAR_TOLERANCE`],
 /// [`ROLL_TOLERANCE`]) or after [`MAX_PASSES`] crops. The network then sees a nearly upright,
-/// unsheared face, the kind it reads best. `None` when a crop cannot be made or the network's
-/// reading is not finite.
+/// unsheared face, the kind it reads best. Something that is not a face is given up on after
+/// [`NO_FACE_PASSES`] crops. `None` when a crop cannot be made or the network's reading is not
+/// finite.
 pub fn locate(
     net: &LandmarkNet,
     gray: &image::GrayImage,
@@ -221,14 +242,17 @@ pub fn locate_within(
 ) -> Option<LocatedFace> {
     let mut frame = start;
     let mut found = None;
+    let mut best_face_score = f64::NEG_INFINITY;
     for pass in 1..=budget.max_passes.max(1) {
         let crop = frame.render_with(gray, budget.max_supersampling)?;
         let out = net.run(&crop, ws);
         let face = read_face(net, &out, frame, pass)?;
         let converged = (face.k - frame.k).abs() < SHEAR_TOLERANCE
             && (face.roll - frame.roll).abs() < ROLL_TOLERANCE;
+        best_face_score = best_face_score.max(face.face);
+        let no_face = pass >= NO_FACE_PASSES && best_face_score < NO_FACE_SCORE;
         found = Some(face);
-        if converged {
+        if converged || no_face {
             break;
         }
         let distance = upright_distance(face.right_eye, face.left_eye, face.k);
@@ -325,6 +349,35 @@ mod tests {
         };
         let once = locate_within(&net, &gray, start, none, &mut ws).expect("a face");
         assert_eq!(once.passes, 1, "at least one crop");
+    }
+
+    #[test]
+    fn something_that_is_not_a_face_is_given_up_on_early() {
+        let net = LandmarkNet::embedded().expect("built-in network");
+        let start = net.frame(Point::new(160.0, 100.0), 60.0, 0.0, 0.0);
+        let mut ws = Workspace::default();
+        // Uniform noise (a fixed linear congruential sequence): texture, and no face in it.
+        let mut state = 12345u32;
+        let noise = image::GrayImage::from_fn(320, 240, |_, _| {
+            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            image::Luma([(state >> 24) as u8])
+        });
+        let flat = image::GrayImage::from_pixel(320, 240, image::Luma([128]));
+        for no_face in [&noise, &flat] {
+            let found = locate(&net, no_face, start, &mut ws).expect("a reading");
+            assert!(found.face < NO_FACE_SCORE, "face score {}", found.face);
+            assert_eq!(found.passes, NO_FACE_PASSES);
+        }
+        // A face from the same rough start is followed to the end (as in
+        // `the_budget_limits_the_crops`), and scores as one.
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/tests/fixtures/faces/subject01.normal.jpeg"
+        );
+        let gray = image::open(path).expect("fixture").into_luma8();
+        let face = locate(&net, &gray, start, &mut ws).expect("a face");
+        assert!(face.face > 0.9, "face score {}", face.face);
+        assert!(face.passes > NO_FACE_PASSES, "{} crops", face.passes);
     }
 
     #[test]
