@@ -67,7 +67,8 @@ pub(crate) struct TreeNode {
 /// The shape all of a cascade's trees share, if any.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum TreeShape {
-    /// One node each (a stump), as in `haarcascade_frontalface_default.xml`.
+    /// One node each (a stump), as in `haarcascade_frontalface_default.xml`. Walked node by
+    /// node like [`TreeShape::Mixed`] (a stump's walk has no second branch to save).
     Stumps,
     /// Two nodes each: a root with one leaf and one node child (node 1 of the tree), whose
     /// children are both leaves, as in `haarcascade_frontalface_alt2.xml`.
@@ -101,7 +102,8 @@ pub(crate) struct CascadeData {
     pub nodes: Vec<TreeNode>,
     pub leaves: Vec<f32>,
     pub features: Vec<Feature>,
-    /// How every tree is shaped, which lets the evaluator walk them without branches.
+    /// How every tree is shaped: [`TreeShape::RootAndOneChild`] trees are scored without
+    /// branches.
     pub shape: TreeShape,
     pub has_tilted: bool,
 }

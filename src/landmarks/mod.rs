@@ -327,17 +327,26 @@ fn read_face(
 mod tests {
     use super::*;
 
-    #[test]
-    fn the_budget_limits_the_crops() {
-        let net = LandmarkNet::embedded().expect("built-in network");
+    /// The committed Yale fixture face, grey.
+    fn fixture_gray() -> image::GrayImage {
         let path = concat!(
             env!("CARGO_MANIFEST_DIR"),
             "/tests/fixtures/faces/subject01.normal.jpeg"
         );
-        let gray = image::open(path).expect("fixture").into_luma8();
-        // A rough start (the picture's middle, a guessed eye distance), so that the stills'
-        // budget takes more than two crops to settle.
-        let start = net.frame(Point::new(160.0, 100.0), 60.0, 0.0, 0.0);
+        image::open(path).expect("fixture").into_luma8()
+    }
+
+    /// A rough start on the fixture (the picture's middle, a guessed eye distance), so that the
+    /// stills' budget takes more than two crops to settle.
+    fn rough_start(net: &LandmarkNet) -> CropFrame {
+        net.frame(Point::new(160.0, 100.0), 60.0, 0.0, 0.0)
+    }
+
+    #[test]
+    fn the_budget_limits_the_crops() {
+        let net = LandmarkNet::embedded().expect("built-in network");
+        let gray = fixture_gray();
+        let start = rough_start(&net);
         let mut ws = Workspace::default();
         let still = locate(&net, &gray, start, &mut ws).expect("a face");
         assert!(still.passes > 2, "{} crops", still.passes);
@@ -354,7 +363,7 @@ mod tests {
     #[test]
     fn something_that_is_not_a_face_is_given_up_on_early() {
         let net = LandmarkNet::embedded().expect("built-in network");
-        let start = net.frame(Point::new(160.0, 100.0), 60.0, 0.0, 0.0);
+        let start = rough_start(&net);
         let mut ws = Workspace::default();
         // Uniform noise (a fixed linear congruential sequence): texture, and no face in it.
         let mut state = 12345u32;
@@ -370,12 +379,7 @@ mod tests {
         }
         // A face from the same rough start is followed to the end (as in
         // `the_budget_limits_the_crops`), and scores as one.
-        let path = concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/tests/fixtures/faces/subject01.normal.jpeg"
-        );
-        let gray = image::open(path).expect("fixture").into_luma8();
-        let face = locate(&net, &gray, start, &mut ws).expect("a face");
+        let face = locate(&net, &fixture_gray(), start, &mut ws).expect("a face");
         assert!(face.face > 0.9, "face score {}", face.face);
         assert!(face.passes > NO_FACE_PASSES, "{} crops", face.passes);
     }
