@@ -125,7 +125,18 @@ impl Default for Budget {
 }
 
 /// Change of the estimated shear below which [`locate`] stops re-cropping.
-pub const SHEAR_TOLERANCE: f64 = 0.001;
+///
+/// The estimate is the crop's own shear plus the network's reading of what is left in it, so
+/// stopping while that reading is under 0.01 leaves less than 0.01 uncorrected by the crop; it
+/// is not thrown away. A tighter tolerance takes the estimate to the iteration's fixed point,
+/// which was no more accurate: with 0.001 (and 0.01 rad of roll) on all 928 development faces
+/// at k = 0 and +-0.40, 2461 of 2784 estimates were within 0.05 and 1497 within 0.02, against
+/// 2465 and 1509 with this tolerance, for 11% more crops. What it bought is
+/// consistency: between the sheared and unsheared copies of one face (median tracking error
+/// 0.001 instead of 0.003), and between starts (from six starts on a fixture face the estimates
+/// spread over 0.001 instead of 0.018; see the test
+/// `the_estimate_hardly_depends_on_the_start`). README, *Performance*.
+pub const SHEAR_TOLERANCE: f64 = 0.01;
 
 /// How many crops [`locate`] makes of something that is not a face before it gives up: when
 /// the face score of each of the first `NO_FACE_PASSES` crops is below [`NO_FACE_SCORE`], the
@@ -147,8 +158,9 @@ pub const NO_FACE_PASSES: usize = 3;
 /// network's face score on non-face crops is mostly below 0.001, on faces mostly above 0.9.
 pub const NO_FACE_SCORE: f64 = 0.001;
 
-/// Change of the estimated roll (radians, about 0.6 degrees) below which [`locate`] stops.
-pub const ROLL_TOLERANCE: f64 = 0.01;
+/// Change of the estimated roll (radians, about 1.1 degrees) below which [`locate`] stops
+/// (loosened with [`SHEAR_TOLERANCE`], from 0.01).
+pub const ROLL_TOLERANCE: f64 = 0.02;
 
 /// The largest shear [`locate`] will crop with (as `features::MAX_SHEAR`).
 pub const MAX_CROP_SHEAR: f64 = 0.8;
@@ -336,10 +348,42 @@ mod tests {
         image::open(path).expect("fixture").into_luma8()
     }
 
-    /// A rough start on the fixture (the picture's middle, a guessed eye distance), so that the
-    /// stills' budget takes more than two crops to settle.
+    /// A rough start on the fixture (the picture's middle, a guessed eye distance, a wrong
+    /// shear of 0.4), so that the stills' budget takes more than three crops to settle (four
+    /// with this network and tolerance).
     fn rough_start(net: &LandmarkNet) -> CropFrame {
-        net.frame(Point::new(160.0, 100.0), 60.0, 0.0, 0.0)
+        net.frame(Point::new(160.0, 100.0), 60.0, 0.4, 0.0)
+    }
+
+    #[test]
+    fn the_estimate_hardly_depends_on_the_start() {
+        // Six starts: off-centre, too large or too small, with wrong shears and rolls. With
+        // `SHEAR_TOLERANCE` 0.01 the fixture's estimates spread over 0.018 (0.016 to 0.034, the
+        // outlier the unsheared rough start, which stops after two crops); with 0.001 they
+        // spread over 0.001. The bound is the measured spread with some room, so that a looser
+        // stopping rule or a worse iteration fails here.
+        let net = LandmarkNet::embedded().expect("built-in network");
+        let gray = fixture_gray();
+        let mut ws = Workspace::default();
+        let estimates: Vec<f64> = [
+            (160.0, 100.0, 60.0, 0.0, 0.0),
+            (160.0, 100.0, 60.0, 0.4, 0.0),
+            (160.0, 100.0, 60.0, -0.4, 0.0),
+            (150.0, 120.0, 80.0, 0.3, 0.2),
+            (170.0, 90.0, 40.0, -0.3, -0.2),
+            (160.0, 100.0, 60.0, 0.0, 0.3),
+        ]
+        .into_iter()
+        .map(|(x, y, d, k, roll)| {
+            let start = net.frame(Point::new(x, y), d, k, roll);
+            let found = locate(&net, &gray, start, &mut ws).expect("a face");
+            assert!(found.face > 0.9, "face score {}", found.face);
+            found.k
+        })
+        .collect();
+        let lo = estimates.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = estimates.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        assert!(hi - lo < 0.025, "estimates {estimates:?}");
     }
 
     #[test]
