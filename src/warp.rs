@@ -195,7 +195,7 @@ pub fn sheared_canvas(
                 }
                 let out_w = (x1 - x0 + 1.0) as u32;
                 let area = u64::from(out_w) * u64::from(h);
-                if best.map_or(true, |b| area > b.0) {
+                if best.is_none_or(|b| area > b.0) {
                     best = Some((area, out_w, h, x0, y0));
                 }
             }

@@ -302,7 +302,7 @@ impl LandmarkNet {
     fn topology(
         h: &Header,
     ) -> Result<Vec<(String, &'static str, usize, usize, usize, usize, bool)>> {
-        if h.size == 0 || h.size % 16 != 0 || h.size > 512 {
+        if h.size == 0 || !h.size.is_multiple_of(16) || h.size > 512 {
             return Err(Error::ModelFile(format!(
                 "crop size {} is not a multiple of 16 up to 512",
                 h.size

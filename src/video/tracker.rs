@@ -113,7 +113,7 @@ impl FaceTracker {
         } else {
             self.params.redetect_interval
         };
-        let full_due = since_full.map_or(true, |s| s >= interval.max(1));
+        let full_due = since_full.is_none_or(|s| s >= interval.max(1));
         // Follow the current tracks first (also on full-detection frames: a face the shrunk
         // frame misses keeps its track).
         let mut tracked = Vec::with_capacity(self.tracks.len());
