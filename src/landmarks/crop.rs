@@ -110,34 +110,15 @@ impl CropFrame {
     /// reduced by a larger whole factor first, a blur in the image's axes of up to about
     /// `1 / max_supersampling` of a crop pixel.
     pub fn render_with(&self, gray: &GrayImage, max_supersampling: usize) -> Option<Vec<f32>> {
-        let max_supersampling = max_supersampling.max(1);
-        if !self.is_valid() || gray.width() == 0 || gray.height() == 0 {
-            return None;
-        }
-        let area = self.footprint();
-        let (iw, ih) = (f64::from(gray.width()), f64::from(gray.height()));
-        if area.width > 16.0 * iw + 16.0 * self.size as f64
-            || area.height > 16.0 * ih + 16.0 * self.size as f64
-        {
-            return None;
-        }
-        // Image pixels reduced into one source sample before supersampling (1: none).
-        let block = (self.scale / max_supersampling as f64).ceil().max(1.0);
-        // Source sample 0 sits on a whole image pixel, so that with `block` 1 the source is
-        // the image's own pixels, not an interpolation of them.
-        let (x0, y0) = (
-            (area.x / block).floor() * block - 2.0 * block,
-            (area.y / block).floor() * block - 2.0 * block,
-        );
-        let sw = ((area.width + 4.0 * block) / block).ceil() as usize + 1;
-        let sh = ((area.height + 4.0 * block) / block).ceil() as usize + 1;
-        // The footprint at one sample per `block` image pixels: reduced with `resample`'s
-        // area-weighted triangle (block > 1), or the image's own pixels (block = 1).
-        let source = resample(gray, x0, y0, block, sw, sh);
-        let m = ((self.scale / block).ceil() as usize).clamp(1, max_supersampling);
-        let [a, b, c, d] = self.linear();
-        // One crop pixel's steps along its row and column, in source samples.
-        let (ax, ay, bx, by) = (a / block, c / block, b / block, d / block);
+        let Sampling {
+            source,
+            width: sw,
+            height: sh,
+            origin: (x0, y0),
+            block,
+            reads: m,
+            steps: [ax, ay, bx, by],
+        } = self.sampling(gray, max_supersampling)?;
         let inv = 1.0 / (m * m) as f32;
         let offsets: Vec<f64> = (0..m).map(|i| (i as f64 + 0.5) / m as f64 - 0.5).collect();
         let row_start = |j: usize| {
@@ -185,6 +166,65 @@ impl CropFrame {
         out.iter_mut().for_each(|o| *o *= inv);
         Some(out)
     }
+
+    /// What [`Self::render_with`] reads: the footprint resampled at one sample per `block`
+    /// image pixels, with a margin of two samples, and how the crop's pixels step through it.
+    /// `None` for a frame that is not rendered.
+    fn sampling(&self, gray: &GrayImage, max_supersampling: usize) -> Option<Sampling> {
+        let max_supersampling = max_supersampling.max(1);
+        if !self.is_valid() || gray.width() == 0 || gray.height() == 0 {
+            return None;
+        }
+        let area = self.footprint();
+        let (iw, ih) = (f64::from(gray.width()), f64::from(gray.height()));
+        if area.width > 16.0 * iw + 16.0 * self.size as f64
+            || area.height > 16.0 * ih + 16.0 * self.size as f64
+        {
+            return None;
+        }
+        // Image pixels reduced into one source sample before supersampling (1: none).
+        let block = (self.scale / max_supersampling as f64).ceil().max(1.0);
+        // Source sample 0 sits on a whole image pixel, so that with `block` 1 the source is
+        // the image's own pixels, not an interpolation of them.
+        let (x0, y0) = (
+            (area.x / block).floor() * block - 2.0 * block,
+            (area.y / block).floor() * block - 2.0 * block,
+        );
+        let width = ((area.width + 4.0 * block) / block).ceil() as usize + 1;
+        let height = ((area.height + 4.0 * block) / block).ceil() as usize + 1;
+        // The footprint at one sample per `block` image pixels: reduced with `resample`'s
+        // area-weighted triangle (block > 1), or the image's own pixels (block = 1).
+        let source = resample(gray, x0, y0, block, width, height);
+        let reads = ((self.scale / block).ceil() as usize).clamp(1, max_supersampling);
+        let [a, b, c, d] = self.linear();
+        Some(Sampling {
+            source,
+            width,
+            height,
+            origin: (x0, y0),
+            block,
+            reads,
+            steps: [a / block, c / block, b / block, d / block],
+        })
+    }
+}
+
+/// The source raster a crop is rendered from ([`CropFrame::sampling`]).
+struct Sampling {
+    /// The footprint and its margin, one sample per `block` image pixels, row-major.
+    source: Vec<f32>,
+    /// Samples per row.
+    width: usize,
+    /// Rows.
+    height: usize,
+    /// The image point of sample `(0, 0)`.
+    origin: (f64, f64),
+    /// Image pixels per source sample.
+    block: f64,
+    /// Reads per crop pixel and axis.
+    reads: usize,
+    /// One crop pixel's steps along its row and its column, in source samples: `[ax, ay, bx, by]`.
+    steps: [f64; 4],
 }
 
 /// Sums, into each pixel of the `size x size` crop `out`, the reads `read(x, y)` at the
@@ -441,18 +481,9 @@ mod tests {
         gray: &GrayImage,
         max_supersampling: usize,
     ) -> Vec<f32> {
-        let area = f.footprint();
-        let block = (f.scale / max_supersampling as f64).ceil().max(1.0);
-        let (x0, y0) = (
-            (area.x / block).floor() * block - 2.0 * block,
-            (area.y / block).floor() * block - 2.0 * block,
-        );
-        let sw = ((area.width + 4.0 * block) / block).ceil() as usize + 1;
-        let sh = ((area.height + 4.0 * block) / block).ceil() as usize + 1;
-        let source = resample(gray, x0, y0, block, sw, sh);
-        let m = ((f.scale / block).ceil() as usize).clamp(1, max_supersampling);
-        let [a, b, c, d] = f.linear();
-        let (ax, ay, bx, by) = (a / block, c / block, b / block, d / block);
+        let s = f.sampling(gray, max_supersampling).expect("valid frame");
+        let (source, sw, sh, m) = (&s.source, s.width, s.height, s.reads);
+        let ((x0, y0), block, [ax, ay, bx, by]) = (s.origin, s.block, s.steps);
         let offsets: Vec<f64> = (0..m).map(|i| (i as f64 + 0.5) / m as f64 - 0.5).collect();
         let mut out = vec![0f32; f.size * f.size];
         for (j, row) in out.chunks_exact_mut(f.size).enumerate() {
@@ -464,7 +495,7 @@ mod tests {
                 for &v in &offsets {
                     for &u in &offsets {
                         let (x, y) = (px + ax * u + bx * v, py + ay * u + by * v);
-                        total += bilinear_clamped(&source, sw, sh, x, y);
+                        total += bilinear_clamped(source, sw, sh, x, y);
                     }
                 }
                 *o = total * (1.0 / (m * m) as f32);
