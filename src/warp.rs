@@ -28,7 +28,7 @@
 pub mod rotate;
 
 use crate::{Error, Point, Rect, Result, Shear};
-use image::{DynamicImage, ImageBuffer, Pixel};
+use image::{DynamicImage, GrayImage, ImageBuffer, Pixel};
 use rayon::prelude::*;
 
 /// Dispatch a generic buffer operation over every `DynamicImage` variant, keeping the variant.
@@ -257,14 +257,7 @@ pub fn try_apply_shear(
     interp: Interpolation,
     canvas: Canvas,
 ) -> Result<(DynamicImage, Placement)> {
-    let (out_w, out_h, placement) = sheared_canvas(img.width(), img.height(), shear, canvas)?;
-    let plan = Plan {
-        out_w: out_w as usize,
-        out_h: out_h as usize,
-        ox: placement.offset_x,
-        oy: placement.offset_y as usize,
-        shear,
-    };
+    let (plan, placement) = plan(img.width(), img.height(), shear, canvas)?;
     let out = per_variant!(img, |buf| warp_buffer(buf, &plan, interp));
     Ok((out, placement))
 }
@@ -278,6 +271,31 @@ pub fn try_remove_shear(
     canvas: Canvas,
 ) -> Result<(DynamicImage, Placement)> {
     try_apply_shear(img, negate(shear), interp, canvas)
+}
+
+/// [`try_remove_shear`] for a grey image, without wrapping it in a [`DynamicImage`] (which
+/// would take a copy of it: the face search warps the grey photo many times).
+pub fn try_remove_shear_gray(
+    gray: &GrayImage,
+    shear: Shear,
+    interp: Interpolation,
+    canvas: Canvas,
+) -> Result<(GrayImage, Placement)> {
+    let (plan, placement) = plan(gray.width(), gray.height(), negate(shear), canvas)?;
+    Ok((warp_buffer(gray, &plan, interp), placement))
+}
+
+/// The output canvas of `shear` applied to a `width x height` image, and where the input lands.
+fn plan(width: u32, height: u32, shear: Shear, canvas: Canvas) -> Result<(Plan, Placement)> {
+    let (out_w, out_h, placement) = sheared_canvas(width, height, shear, canvas)?;
+    let plan = Plan {
+        out_w: out_w as usize,
+        out_h: out_h as usize,
+        ox: placement.offset_x,
+        oy: placement.offset_y as usize,
+        shear,
+    };
+    Ok((plan, placement))
 }
 
 fn negate(shear: Shear) -> Shear {

@@ -472,3 +472,27 @@ fn simd_dispatch_matches_baseline() {
     cubic_u8_dispatch(&mut b, taps, w);
     assert_eq!(a, b);
 }
+
+#[test]
+fn the_grey_warp_is_the_dynamic_images_warp() {
+    let gray = smooth_gray(37, 29);
+    let wrapped = DynamicImage::ImageLuma8(gray.clone());
+    for k in [0.0, 0.3, -0.45] {
+        for canvas in [Canvas::Same, Canvas::Expand, Canvas::Crop] {
+            let shear = Shear::about_middle(k, gray.height());
+            let (a, pa) = try_remove_shear_gray(&gray, shear, Interpolation::Linear, canvas)
+                .expect("a valid shear");
+            let (b, pb) = try_remove_shear(&wrapped, shear, Interpolation::Linear, canvas)
+                .expect("a valid shear");
+            assert_eq!(pa, pb, "{k} {canvas:?}");
+            assert_eq!(DynamicImage::ImageLuma8(a), b, "{k} {canvas:?}");
+        }
+    }
+    assert!(try_remove_shear_gray(
+        &gray,
+        Shear::new(f64::NAN, 0.0),
+        Interpolation::Linear,
+        Canvas::Expand
+    )
+    .is_err());
+}
