@@ -26,7 +26,7 @@ use image::GrayImage;
 
 use crate::filters::{normalize_patch, Correlator, EyeFilters, Peak};
 use crate::geometry::{Point, Rect};
-use crate::resample::{bilinear_clamped, resample};
+use crate::resample::{bilinear_clamped, resample, resample_rows};
 
 /// Width of the normalised face, pixels (the paper's 150).
 pub const FACE_WIDTH: f64 = 150.0;
@@ -202,8 +202,11 @@ const MARGIN_Y: usize = 40;
 /// are `x = box.x + u * scale`, `y = box.y + v * scale`.
 #[derive(Debug, Clone)]
 pub struct NormalizedFace {
-    /// Samples, row-major, `width * height`, covering `u in [-MARGIN_X, width - MARGIN_X)`.
+    /// Samples, row-major, `width` per row, covering `u in [-MARGIN_X, width - MARGIN_X)`: all
+    /// `height` rows, or only a band of them from `first_row` on ([`Self::band`]).
     pixels: Vec<f32>,
+    /// The first row `pixels` holds (0 unless a band).
+    first_row: usize,
     width: usize,
     height: usize,
     /// Image pixels per normalised pixel.
@@ -218,26 +221,69 @@ impl NormalizedFace {
     /// Resamples `face_box` of `gray` to [`FACE_WIDTH`] pixels wide (aspect kept), with a
     /// triangle (area-weighted when shrinking) filter and edge replication outside the image.
     pub fn new(gray: &GrayImage, face_box: Rect) -> Self {
-        let scale = face_box.width / FACE_WIDTH;
-        let box_h = (face_box.height / scale).round().max(1.0) as usize;
-        let width = FACE_WIDTH as usize + 2 * MARGIN_X;
-        let height = box_h + 2 * MARGIN_Y;
-        let pixels = resample(
+        let height = Self::frame(face_box, 0.0).height;
+        Self::band_of_rows(gray, face_box, 0..height)
+    }
+
+    /// [`Self::new`] with only the rows that the normalised rows `v_lo..=v_hi` read (bilinearly:
+    /// each row's neighbour below too) resampled: the same values there, bit for bit, for a
+    /// caller that reads only a band of the face, such as [`FeatureLocator::nostrils_below`]
+    /// through [`nostril_band`]. Reading outside the band is a caller's error: it reads the
+    /// band's nearest row instead (and fails a debug assertion).
+    pub fn band(gray: &GrayImage, face_box: Rect, v_lo: f64, v_hi: f64) -> Self {
+        let height = Self::frame(face_box, 0.0).height;
+        let row = |v: f64| {
+            (v + MARGIN_Y as f64)
+                .floor()
+                .clamp(0.0, (height - 1) as f64) as usize
+        };
+        let (lo, hi) = (row(v_lo), row(v_hi));
+        Self::band_of_rows(gray, face_box, lo.min(hi)..hi.max(lo) + 2)
+    }
+
+    /// The resampled rows `rows` (clipped to the face's height) of the upright face.
+    fn band_of_rows(gray: &GrayImage, face_box: Rect, rows: std::ops::Range<usize>) -> Self {
+        let mut face = Self::frame(face_box, 0.0);
+        let scale = face.scale;
+        face.first_row = rows.start.min(face.height);
+        face.pixels = resample_rows(
             gray,
             face_box.x - MARGIN_X as f64 * scale,
             face_box.y - MARGIN_Y as f64 * scale,
             scale,
-            width,
-            height,
+            face.width,
+            face.height,
+            rows,
         );
+        face
+    }
+
+    /// The geometry of the face normalised from `face_box`, turned by `roll`, without pixels.
+    fn frame(face_box: Rect, roll: f64) -> Self {
+        let scale = face_box.width / FACE_WIDTH;
+        let box_h = (face_box.height / scale).round().max(1.0) as usize;
         Self {
-            pixels,
-            width,
-            height,
+            pixels: Vec::new(),
+            first_row: 0,
+            width: FACE_WIDTH as usize + 2 * MARGIN_X,
+            height: box_h + 2 * MARGIN_Y,
             scale,
             face_box,
-            roll: 0.0,
+            roll,
         }
+    }
+
+    /// Row `y` (0 at the top of the whole face) of the samples held.
+    fn row(&self, y: usize) -> &[f32] {
+        let held = self.pixels.len() / self.width.max(1);
+        debug_assert!(
+            y >= self.first_row && y < self.first_row + held,
+            "row {y} outside the band {}..{}",
+            self.first_row,
+            self.first_row + held
+        );
+        let i = y.saturating_sub(self.first_row).min(held.saturating_sub(1));
+        &self.pixels[i * self.width..(i + 1) * self.width]
     }
 
     /// Like [`Self::new`], but the normalised frame is turned by `roll` radians about the box's
@@ -251,18 +297,8 @@ impl NormalizedFace {
         if roll == 0.0 || !roll.is_finite() {
             return Self::new(gray, face_box);
         }
-        let scale = face_box.width / FACE_WIDTH;
-        let box_h = (face_box.height / scale).round().max(1.0) as usize;
-        let width = FACE_WIDTH as usize + 2 * MARGIN_X;
-        let height = box_h + 2 * MARGIN_Y;
-        let mut face = Self {
-            pixels: Vec::new(),
-            width,
-            height,
-            scale,
-            face_box,
-            roll,
-        };
+        let mut face = Self::frame(face_box, roll);
+        let (scale, width, height) = (face.scale, face.width, face.height);
         // The image region the turned frame covers, in image pixels.
         let corners = [
             (-(MARGIN_X as f64), -(MARGIN_Y as f64)),
@@ -369,8 +405,7 @@ impl NormalizedFace {
         let (x0, y0) = (x.floor() as usize, y.floor() as usize);
         let (x1, y1) = ((x0 + 1).min(self.width - 1), (y0 + 1).min(self.height - 1));
         let (fx, fy) = ((x - x0 as f64) as f32, (y - y0 as f64) as f32);
-        let row0 = &self.pixels[y0 * self.width..];
-        let row1 = &self.pixels[y1 * self.width..];
+        let (row0, row1) = (self.row(y0), self.row(y1));
         let top = row0[x0] + (row0[x1] - row0[x0]) * fx;
         let bottom = row1[x0] + (row1[x1] - row1[x0]) * fx;
         top + (bottom - top) * fy
@@ -391,8 +426,7 @@ impl NormalizedFace {
             let y0 = y.floor() as usize;
             let y1 = (y0 + 1).min(self.height - 1);
             let fy = (y - y0 as f64) as f32;
-            let row0 = &self.pixels[y0 * self.width..][..self.width];
-            let row1 = &self.pixels[y1 * self.width..][..self.width];
+            let (row0, row1) = (self.row(y0), self.row(y1));
             let x_start = u0 + MARGIN_X as f64;
             let first = x_start.floor();
             let fx = (x_start - first) as f32;
@@ -409,6 +443,58 @@ impl NormalizedFace {
             }
         }
     }
+}
+
+/// Where the nostril searches below eyes at `right_eye` and `left_eye` (normalised-face pixels
+/// of a de-sheared view) are centred, right then left, and their window.
+fn nostril_searches(right_eye: Point, left_eye: Point) -> (Point, Point, (usize, usize)) {
+    let eye_distance = right_eye.distance(left_eye).max(1.0);
+    let (inward, down) = (
+        NOSTRIL_FROM_EYE.0 * eye_distance,
+        NOSTRIL_FROM_EYE.1 * eye_distance,
+    );
+    let window = (
+        (NOSTRIL_SEARCH.0 * eye_distance).round().max(1.0) as usize,
+        (NOSTRIL_SEARCH.1 * eye_distance).round().max(1.0) as usize,
+    );
+    let below = |eye: Point, dir: f64| Point::new(eye.x + dir * inward, eye.y + down);
+    (below(right_eye, 1.0), below(left_eye, -1.0), window)
+}
+
+/// Eyes at image points `right_eye` and `left_eye` in `face`'s view de-sheared by `k` about
+/// their row, and that row (normalised-face pixels).
+fn eyes_in_view(
+    face: &NormalizedFace,
+    right_eye: Point,
+    left_eye: Point,
+    k: f64,
+) -> (Point, Point, f64) {
+    let (r, l) = (face.from_image(right_eye), face.from_image(left_eye));
+    let pivot_v = (r.y + l.y) / 2.0;
+    let view = |p: Point| Point::new(p.x - k * (p.y - pivot_v), p.y);
+    (view(r), view(l), pivot_v)
+}
+
+/// The normalised rows, first and last, that [`FeatureLocator::nostrils_below`] reads with
+/// patches of side `patch_size` in the upright face normalised from `face_box`, for eyes at
+/// image points `right_eye` and `left_eye` and shear `k`: what [`NormalizedFace::band`] needs
+/// to resample. (A shear moves the patches' columns, never their rows.)
+pub fn nostril_band(
+    face_box: Rect,
+    right_eye: Point,
+    left_eye: Point,
+    k: f64,
+    patch_size: usize,
+) -> (f64, f64) {
+    let frame = NormalizedFace::frame(face_box, 0.0);
+    let (r, l, _) = eyes_in_view(&frame, right_eye, left_eye, k);
+    let (right, left, _) = nostril_searches(r, l);
+    // `patch` reads rows `centre - size / 2` to `centre - size / 2 + size - 1`.
+    let half = (patch_size / 2) as f64;
+    (
+        right.y.min(left.y) - half,
+        right.y.max(left.y) - half + patch_size.saturating_sub(1) as f64,
+    )
 }
 
 /// The expected positions of both eyes in the normalised face (from the detector-box medians).
@@ -798,18 +884,9 @@ impl<'f> FeatureLocator<'f> {
         k: f64,
         pivot_v: f64,
     ) -> (Located, Located) {
-        let eye_distance = right_eye.distance(left_eye).max(1.0);
-        let (inward, down) = (
-            NOSTRIL_FROM_EYE.0 * eye_distance,
-            NOSTRIL_FROM_EYE.1 * eye_distance,
-        );
-        let window = (
-            (NOSTRIL_SEARCH.0 * eye_distance).round().max(1.0) as usize,
-            (NOSTRIL_SEARCH.1 * eye_distance).round().max(1.0) as usize,
-        );
-        let below = |eye: Point, dir: f64| Point::new(eye.x + dir * inward, eye.y + down);
-        let right = self.find(face, below(right_eye, 1.0), k, pivot_v, window, true);
-        let left = self.find(face, below(left_eye, -1.0), k, pivot_v, window, true);
+        let (right_centre, left_centre, window) = nostril_searches(right_eye, left_eye);
+        let right = self.find(face, right_centre, k, pivot_v, window, true);
+        let left = self.find(face, left_centre, k, pivot_v, window, true);
         (right, left)
     }
 
@@ -823,11 +900,8 @@ impl<'f> FeatureLocator<'f> {
         left_eye: Point,
         k: f64,
     ) -> [(Point, f64); 2] {
-        let (r, l) = (face.from_image(right_eye), face.from_image(left_eye));
-        let pivot_v = (r.y + l.y) / 2.0;
-        // The eyes in the de-sheared view.
-        let view = |p: Point| Point::new(p.x - k * (p.y - pivot_v), p.y);
-        let (right, left) = self.find_nostrils(face, view(r), view(l), k, pivot_v);
+        let (r, l, pivot_v) = eyes_in_view(face, right_eye, left_eye, k);
+        let (right, left) = self.find_nostrils(face, r, l, k, pivot_v);
         [right, left].map(|n| {
             let p = n.position;
             (
@@ -1360,6 +1434,51 @@ mod tests {
         let seed = locator.locate(&first, Some(0.0));
         let face = NormalizedFace::new(&gray, face_box_from_eyes(seed.right_eye, seed.left_eye));
         (gray, face)
+    }
+
+    #[test]
+    fn nostrils_read_from_their_band_are_those_of_the_whole_face_bit_for_bit() {
+        let filters = EyeFilters::embedded().expect("built-in filters");
+        let (gray, _) = fixture_face(&filters);
+        let (w, h) = (f64::from(gray.width()), f64::from(gray.height()));
+        let mut locator = FeatureLocator::new(&filters);
+        let mut band_rows = 0;
+        let mut whole_rows = 0;
+        // The fixture's eyes, eyes tilted, small and large faces, faces at and past the
+        // photo's edges, with shears up to the largest the network crops with.
+        for (right, left, k) in [
+            ((132.0, 104.0), (190.0, 103.0), 0.0),
+            ((132.0, 104.0), (190.0, 103.0), 0.8),
+            ((132.0, 104.0), (190.0, 103.0), -0.8),
+            ((130.0, 90.0), (185.0, 118.0), 0.3),
+            ((150.0, 100.0), (162.0, 101.0), -0.2),
+            ((60.0, 80.0), (230.0, 85.0), 0.1),
+            ((5.0, 3.0), (40.0, 4.0), 0.5),
+            ((w - 30.0, h - 4.0), (w + 10.0, h - 2.0), -0.4),
+            ((-40.0, h + 20.0), (-5.0, h + 22.0), 0.2),
+        ] {
+            let (r, l) = (Point::new(right.0, right.1), Point::new(left.0, left.1));
+            let face_box = face_box_from_eyes(r, l);
+            let whole = NormalizedFace::new(&gray, face_box);
+            let (v_lo, v_hi) = nostril_band(face_box, r, l, k, filters.size());
+            let band = NormalizedFace::band(&gray, face_box, v_lo, v_hi);
+            band_rows += band.pixels.len() / band.width;
+            whole_rows += whole.height;
+            let from_whole = locator.nostrils_below(&whole, r, l, k);
+            let from_band = locator.nostrils_below(&band, r, l, k);
+            for ((p, psr), (q, qsr)) in from_whole.iter().zip(&from_band) {
+                assert_eq!(
+                    (p.x.to_bits(), p.y.to_bits(), psr.to_bits()),
+                    (q.x.to_bits(), q.y.to_bits(), qsr.to_bits()),
+                    "eyes {r:?} {l:?}, k {k}"
+                );
+            }
+        }
+        // The point of the band: well under half of the face's rows.
+        assert!(
+            band_rows * 2 < whole_rows,
+            "{band_rows} of {whole_rows} rows"
+        );
     }
 
     #[test]

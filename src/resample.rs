@@ -3,6 +3,8 @@
 //! ([`crate::landmarks::CropFrame`]) are both cut with, so that what the network was trained on
 //! and what it sees at run time come from the same code.
 
+use std::ops::Range;
+
 use image::GrayImage;
 
 /// Separable triangle-filter resampling of a window of `gray`: output pixel `(i, j)` is centred
@@ -18,15 +20,34 @@ pub fn resample(
     width: usize,
     height: usize,
 ) -> Vec<f32> {
+    resample_rows(gray, x0, y0, scale, width, height, 0..height)
+}
+
+/// Only the output rows `rows` (clipped to `0..height`) of [`resample`]'s `width x height`
+/// window, row-major: the same values as those rows of the whole window, bit for bit (each
+/// output row is computed from its own filter taps alone), for callers that read a band of it.
+pub fn resample_rows(
+    gray: &GrayImage,
+    x0: f64,
+    y0: f64,
+    scale: f64,
+    width: usize,
+    height: usize,
+    rows: Range<usize>,
+) -> Vec<f32> {
+    let rows = rows.start.min(height)..rows.end.min(height);
     let (iw, ih) = (gray.width() as usize, gray.height() as usize);
     if scale == 1.0 && x0.fract() == 0.0 && y0.fract() == 0.0 && iw > 0 && ih > 0 {
         // Whole pixels at unit scale: the taps are 0, 1, 0, so the filter is a copy (with the
         // edge replicated), and copying gives exactly the same values several times faster (the
         // landmark network's crops of faces up to five times its size read the image so).
-        return copy_clamped(gray, x0, y0, width, height);
+        return copy_clamped(gray, x0, y0, width, rows);
     }
     let xs = taps(x0, scale, width, iw);
+    // Taps for every row, then only the band's: a row's taps depend on its index from the
+    // window's top, computed the same way whichever rows are kept.
     let ys = taps(y0, scale, height, ih);
+    let ys = &ys[rows.clone()];
     // Only the image columns some output column reads.
     let col_lo = xs.iter().map(|t| t.first).min().unwrap_or(0);
     let col_hi = xs
@@ -37,7 +58,7 @@ pub fn resample(
     let span = col_hi.saturating_sub(col_lo);
     let raw = gray.as_raw();
     let mut column_pass = vec![0f32; span];
-    let mut out = vec![0f32; width * height];
+    let mut out = vec![0f32; width * rows.len()];
     for (j, ty) in ys.iter().enumerate() {
         column_pass.iter_mut().for_each(|v| *v = 0.0);
         for (k, &w) in ty.weights.iter().enumerate() {
@@ -60,9 +81,9 @@ pub fn resample(
     out
 }
 
-/// The `width x height` window of `gray` whose top-left pixel is `(x0, y0)` (whole numbers), as
-/// `f32`, with pixels outside the image replaced by the nearest edge pixel.
-fn copy_clamped(gray: &GrayImage, x0: f64, y0: f64, width: usize, height: usize) -> Vec<f32> {
+/// Rows `rows` of the window of `gray` whose top-left pixel is `(x0, y0)` (whole numbers), `width`
+/// wide, as `f32`, with pixels outside the image replaced by the nearest edge pixel.
+fn copy_clamped(gray: &GrayImage, x0: f64, y0: f64, width: usize, rows: Range<usize>) -> Vec<f32> {
     let (iw, ih) = (gray.width() as i64, gray.height() as i64);
     let clamp = |v: i64, len: i64| v.clamp(0, len - 1) as usize;
     let (x0, y0) = (x0 as i64, y0 as i64);
@@ -71,9 +92,9 @@ fn copy_clamped(gray: &GrayImage, x0: f64, y0: f64, width: usize, height: usize)
     let columns: Vec<usize> = (0..width as i64)
         .map(|i| clamp(x0.saturating_add(i), iw))
         .collect();
-    let mut out = Vec::with_capacity(width * height);
-    for j in 0..height as i64 {
-        let y = clamp(y0.saturating_add(j), ih);
+    let mut out = Vec::with_capacity(width * rows.len());
+    for j in rows {
+        let y = clamp(y0.saturating_add(j as i64), ih);
         let row = &raw[y * iw as usize..(y + 1) * iw as usize];
         out.extend(columns.iter().map(|&x| f32::from(row[x])));
     }
@@ -131,6 +152,37 @@ mod tests {
 
     fn ramp(w: u32, h: u32) -> GrayImage {
         GrayImage::from_fn(w, h, |x, y| image::Luma([((x * 2 + y) % 256) as u8]))
+    }
+
+    #[test]
+    fn a_band_of_rows_is_those_rows_of_the_whole_window_bit_for_bit() {
+        let img = GrayImage::from_fn(61, 47, |x, y| {
+            image::Luma([((x * 37 + y * 91 + x * y) % 251) as u8])
+        });
+        let (width, height) = (40, 33);
+        // The copy path (unit scale, whole pixels), enlarging, shrinking, and windows reaching
+        // past the image.
+        for (x0, y0, scale) in [
+            (3.0, 4.0, 1.0),
+            (-5.0, -7.0, 1.0),
+            (2.3, 1.7, 0.6),
+            (-4.2, 10.9, 1.9),
+            (30.5, 25.25, 2.7),
+        ] {
+            let whole = resample(&img, x0, y0, scale, width, height);
+            for rows in [0..height, 0..1, 5..17, 32..33, 20..50, 40..45, 7..7] {
+                let band = resample_rows(&img, x0, y0, scale, width, height, rows.clone());
+                let (lo, hi) = (rows.start.min(height), rows.end.min(height));
+                let want = &whole[lo * width..hi * width];
+                assert_eq!(band.len(), want.len(), "{x0} {y0} {scale} {rows:?}");
+                assert!(
+                    band.iter()
+                        .zip(want)
+                        .all(|(a, b)| a.to_bits() == b.to_bits()),
+                    "{x0} {y0} {scale} {rows:?}"
+                );
+            }
+        }
     }
 
     #[test]
