@@ -43,11 +43,9 @@ pub fn resample_rows(
         // landmark network's crops of faces up to five times its size read the image so).
         return copy_clamped(gray, x0, y0, width, rows);
     }
-    let xs = taps(x0, scale, width, iw);
-    // Taps for every row, then only the band's: a row's taps depend on its index from the
-    // window's top, computed the same way whichever rows are kept.
-    let ys = taps(y0, scale, height, ih);
-    let ys = &ys[rows.clone()];
+    let xs = taps(x0, scale, 0..width, iw);
+    // Only the band's rows: a row's taps depend on its own index from the window's top alone.
+    let ys = taps(y0, scale, rows.clone(), ih);
     // Only the image columns some output column reads.
     let col_lo = xs.iter().map(|t| t.first).min().unwrap_or(0);
     let col_hi = xs
@@ -120,12 +118,13 @@ struct Taps {
     weights: Vec<f32>,
 }
 
-/// Triangle-filter taps for `n` output samples at `origin + i * scale` over `len` source samples;
-/// indices outside `[0, len)` are clamped to the edge (edge replication) and their weights merged.
-fn taps(origin: f64, scale: f64, n: usize, len: usize) -> Vec<Taps> {
+/// Triangle-filter taps for the output samples `i in indices` at `origin + i * scale` over `len`
+/// source samples; indices outside `[0, len)` are clamped to the edge (edge replication) and
+/// their weights merged.
+fn taps(origin: f64, scale: f64, indices: Range<usize>, len: usize) -> Vec<Taps> {
     let radius = scale.max(1.0);
     let last = len.saturating_sub(1) as isize;
-    (0..n)
+    indices
         .map(|i| {
             let c = origin + i as f64 * scale;
             let lo = (c - radius).ceil() as isize;
