@@ -556,8 +556,9 @@ fn im2col<'a>(
     &columns[..depth * plane]
 }
 
-/// `dst[i] = src[i * step]` for as many values as both allow; a step of 2 (the network's
-/// strided convolutions) with the step known to the compiler, which then vectorises it.
+/// `dst[i] = src[i * step]` for as many values as both allow. A step of 2 (the network's
+/// strided convolutions) has its own loop with the step known to the compiler: the general
+/// `step_by` loop, which the old copy used, recomputes its bounds for every value.
 fn deinterleave(dst: &mut [f32], src: &[f32], step: usize) {
     if step == 2 {
         for (d, pair) in dst.iter_mut().zip(src.chunks(2)) {
