@@ -221,8 +221,9 @@ impl NormalizedFace {
     /// Resamples `face_box` of `gray` to [`FACE_WIDTH`] pixels wide (aspect kept), with a
     /// triangle (area-weighted when shrinking) filter and edge replication outside the image.
     pub fn new(gray: &GrayImage, face_box: Rect) -> Self {
-        let height = Self::frame(face_box, 0.0).height;
-        Self::band_of_rows(gray, face_box, 0..height)
+        let face = Self::frame(face_box, 0.0);
+        let rows = 0..face.height;
+        face.with_rows(gray, rows)
     }
 
     /// [`Self::new`] with only the rows that the normalised rows `v_lo..=v_hi` read (bilinearly:
@@ -231,31 +232,26 @@ impl NormalizedFace {
     /// through [`nostril_band`]. Reading outside the band is a caller's error: it reads the
     /// band's nearest row instead (and fails a debug assertion).
     pub fn band(gray: &GrayImage, face_box: Rect, v_lo: f64, v_hi: f64) -> Self {
-        let height = Self::frame(face_box, 0.0).height;
-        let row = |v: f64| {
-            (v + MARGIN_Y as f64)
-                .floor()
-                .clamp(0.0, (height - 1) as f64) as usize
-        };
+        let face = Self::frame(face_box, 0.0);
+        let last = (face.height - 1) as f64;
+        let row = |v: f64| (v + MARGIN_Y as f64).floor().clamp(0.0, last) as usize;
         let (lo, hi) = (row(v_lo), row(v_hi));
-        Self::band_of_rows(gray, face_box, lo.min(hi)..hi.max(lo) + 2)
+        face.with_rows(gray, lo.min(hi)..hi.max(lo) + 2)
     }
 
-    /// The resampled rows `rows` (clipped to the face's height) of the upright face.
-    fn band_of_rows(gray: &GrayImage, face_box: Rect, rows: std::ops::Range<usize>) -> Self {
-        let mut face = Self::frame(face_box, 0.0);
-        let scale = face.scale;
-        face.first_row = rows.start.min(face.height);
-        face.pixels = resample_rows(
+    /// This upright frame with its rows `rows` (clipped to its height) resampled from `gray`.
+    fn with_rows(mut self, gray: &GrayImage, rows: std::ops::Range<usize>) -> Self {
+        self.first_row = rows.start.min(self.height);
+        self.pixels = resample_rows(
             gray,
-            face_box.x - MARGIN_X as f64 * scale,
-            face_box.y - MARGIN_Y as f64 * scale,
-            scale,
-            face.width,
-            face.height,
+            self.face_box.x - MARGIN_X as f64 * self.scale,
+            self.face_box.y - MARGIN_Y as f64 * self.scale,
+            self.scale,
+            self.width,
+            self.height,
             rows,
         );
-        face
+        self
     }
 
     /// The geometry of the face normalised from `face_box`, turned by `roll`, without pixels.
