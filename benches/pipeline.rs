@@ -1,7 +1,8 @@
 //! Pipeline benchmarks: the estimate for one face once it is detected (target <= 1 ms), with the
 //! landmark network (the default) and with the filters, one forward pass of the network and one
 //! rendering of its crop; a
-//! tilted head, searched again upright, separately; face detection on a 1920x1080 frame, and the whole
+//! tilted head, searched again upright, separately; face detection and the face proposals on a
+//! 1920x1080 frame, and the whole
 //! estimate of a frame with one face and with none, with the thorough (default) and the quick
 //! face search. Correction speed is in `benches/warp.rs`.
 //!
@@ -112,6 +113,22 @@ fn bench(c: &mut Criterion) {
     });
     group.bench_function("min face 60, all threads", |b| {
         b.iter(|| min_face_60.detect(&frame))
+    });
+    // The thorough search's face proposals (its smallest eye distance: 60 px boxes).
+    let proposals = match unshear::detect::ProposalNet::embedded() {
+        Ok(p) => p,
+        Err(e) => panic!("proposal classifier: {e}"),
+    };
+    let params = unshear::detect::ProposalParams {
+        min_eye_distance: unshear::pipeline::WEAK_BOX_MIN_WIDTH
+            * unshear::features::EYE_DISTANCE_PER_BOX_WIDTH,
+        ..Default::default()
+    };
+    group.bench_function("face proposals, 1 thread", |b| {
+        single_thread(|| b.iter(|| proposals.propose(&frame, &params)))
+    });
+    group.bench_function("face proposals, all threads", |b| {
+        b.iter(|| proposals.propose(&frame, &params))
     });
     group.finish();
 

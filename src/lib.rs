@@ -44,6 +44,7 @@ pub mod filters;
 pub mod geometry;
 pub mod imageio;
 pub mod landmarks;
+mod modelfile;
 pub mod pipeline;
 pub mod resample;
 pub mod train;

@@ -24,7 +24,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::annotate::FaceMarks;
-use crate::detect::{Cascade, DetectorParams, FaceDetector};
+use crate::detect::{Cascade, DetectorParams, FaceDetector, ProposalNet, ProposalParams};
 use crate::error::{Error, Result};
 use crate::estimate::shear_and_roll;
 use crate::estimate::{estimate_face, FaceEstimate, FeatureGeometry, ShearModel};
@@ -206,6 +206,12 @@ pub enum FaceSearch {
     ///
     /// Neighbouring views scan different scales ([`THOROUGH_HALF_STEP_LADDER`]), and the turned
     /// views of strong rolls are searched again de-sheared ([`TURNED_DESHEARED_MIN_ROLL`]).
+    /// After the first thirteen views, the windows of the proposal classifier
+    /// ([`crate::detect::ProposalNet`], trained on sheared and rolled faces), run once over the
+    /// image as it is, are candidates too, strongest first, each where no face has been found
+    /// yet, judged like a near miss ([`NEAR_MISS_MIN_FACE_SCORE`]) and kept only if the network
+    /// locates the face the window shows ([`PROPOSAL_MAX_OFFSET`], [`PROPOSAL_MAX_SCALE`]): the
+    /// marginal faces that one resampling more or less hides from the cascade in every view.
     ///
     /// Measured on the 928 Caltech development faces (README, *Detection under shear*): 98.9 /
     /// 98.4 / 98.4% found at k = 0 / +0.40 / -0.40, 98.4-99.1% at every |k| <= 0.40 (97.7 /
@@ -505,6 +511,8 @@ pub struct Unshear {
     /// The detectors of [`FaceSearch::Thorough`], when it is set (they are used with the
     /// network only).
     thorough: Option<ThoroughDetectors>,
+    /// The face proposal classifier of the thorough search ([`Self::set_proposals`]).
+    proposals: Option<ProposalNet>,
 }
 
 /// The detectors of [`FaceSearch::Thorough`]: both lenient ([`THOROUGH_MIN_NEIGHBORS`]); the
@@ -543,6 +551,7 @@ impl Unshear {
             roll_hypotheses: DEFAULT_ROLL_HYPOTHESES.to_vec(),
             search_every_view: false,
             thorough: None,
+            proposals: None,
         }
     }
 
@@ -846,14 +855,23 @@ impl Unshear {
         self.refinements = refinements;
     }
 
-    /// The built-in models: OpenCV's `haarcascade_frontalface_alt2`, the trained eye filters
-    /// and the landmark network, which locates the features ([`Locator::Network`]), searching
-    /// thoroughly ([`FaceSearch::Thorough`]).
+    /// The built-in models: OpenCV's `haarcascade_frontalface_alt2`, the trained eye filters,
+    /// the landmark network, which locates the features ([`Locator::Network`]), and the face
+    /// proposal classifier, searching thoroughly ([`FaceSearch::Thorough`]).
     pub fn with_defaults() -> Result<Self> {
         let mut unshear = Self::new(FaceDetector::frontal_face(), EyeFilters::embedded()?);
         unshear.set_network(Some(LandmarkNet::embedded()?));
         unshear.set_face_search(FaceSearch::Thorough);
+        unshear.set_proposals(Some(ProposalNet::embedded()?));
         Ok(unshear)
+    }
+
+    /// Sets the face proposal classifier whose windows the thorough search
+    /// ([`FaceSearch::Thorough`], with the network) adds to the cascade's boxes as candidates,
+    /// where no face has been found yet (see [`FaceSearch::Thorough`]); `None`: the cascade's
+    /// boxes only. [`Self::with_defaults`] sets the built-in one ([`ProposalNet::embedded`]).
+    pub fn set_proposals(&mut self, proposals: Option<ProposalNet>) {
+        self.proposals = proposals;
     }
 
     /// Sets the landmark network; with one, the features are located by it
@@ -980,6 +998,20 @@ impl Unshear {
                 let mut found = self.detect_as_is(pass, gray);
                 found.extend(self.detect_in_views(views_pass, gray, &views));
                 all.extend(faces(found));
+                if let (0, Some(_), Some(net)) = (i, thorough, &self.proposals) {
+                    // Strongest first, each judged against the faces found so far (the
+                    // cascade's and the stronger windows').
+                    for d in proposal_detections(net, gray, WEAK_BOX_MIN_WIDTH) {
+                        if !proposal_is_new(&d, &all) {
+                            continue;
+                        }
+                        if let Some((b, Some(r))) = estimate(d) {
+                            if proposal_shows(&d, &r) {
+                                all.push((b, Some(r)));
+                            }
+                        }
+                    }
+                }
                 if accepted(&all) {
                     break;
                 }
@@ -1593,6 +1625,84 @@ fn tagged_boxes(
     detected.chain(found.near_misses.into_iter().map(|(b, n)| (b, n, true)))
 }
 
+/// How far (in the window's eye distances) the eyes the network located from a proposal
+/// window may be from where the window expects them, for the face to count as the window's.
+pub const PROPOSAL_MAX_OFFSET: f64 = 0.5;
+
+/// How much larger or smaller than the window expects the located eye distance may be.
+pub const PROPOSAL_MAX_SCALE: f64 = 1.5;
+
+/// Where a proposal (see [`proposal_detections`]) expects the eyes' midpoint, and their
+/// distance.
+fn proposal_eyes(proposal: &Detection) -> (Point, f64) {
+    let b = proposal.face_box;
+    let (at_x, at_y) = eyes_in_box();
+    (
+        Point::new(b.x + at_x * b.width, b.y + at_y * b.height),
+        b.width * EYE_DISTANCE_PER_BOX_WIDTH,
+    )
+}
+
+/// Whether a proposal may show a face not among `found`: its box holds the eyes of none of
+/// about its size ([`PROPOSAL_MAX_SCALE`]; that face again), and its eyes are inside the box of
+/// none of about its size or larger (part of that face at a smaller scale: a large face's nose
+/// and nostrils can look like a small face to the classifier and the network alike). A much
+/// larger window around a smaller face found is still searched: that "face" can be the nose of
+/// the larger one.
+fn proposal_is_new(proposal: &Detection, found: &[(Rect, Option<FaceReport>)]) -> bool {
+    let (eyes, distance) = proposal_eyes(proposal);
+    let b = proposal.face_box;
+    found.iter().all(|(_, r)| {
+        r.is_none_or(|r| {
+            let holds_it = b.contains(r.right_eye) && b.contains(r.left_eye);
+            let ratio = r.right_eye.distance(r.left_eye) / distance;
+            let at_least_as_large = ratio * PROPOSAL_MAX_SCALE >= 1.0;
+            let about_as_large = at_least_as_large && ratio <= PROPOSAL_MAX_SCALE;
+            let same_face = holds_it && about_as_large;
+            let part_of_it = at_least_as_large && r.face_box.contains(eyes);
+            !(same_face || part_of_it)
+        })
+    })
+}
+
+/// Whether the face the network located from a proposal (see [`proposal_detections`]) is the
+/// one its window shows: its eyes' midpoint within [`PROPOSAL_MAX_OFFSET`] of where the window
+/// expects it and its eye distance within [`PROPOSAL_MAX_SCALE`] of the window's. The network
+/// can walk from a window beside a face to part of it, or to another face.
+fn proposal_shows(proposal: &Detection, face: &FaceReport) -> bool {
+    let (expected_eyes, expected) = proposal_eyes(proposal);
+    let distance = face.right_eye.distance(face.left_eye);
+    face.right_eye
+        .midpoint(face.left_eye)
+        .distance(expected_eyes)
+        < PROPOSAL_MAX_OFFSET * expected
+        && (distance / expected).ln().abs() < PROPOSAL_MAX_SCALE.ln()
+}
+
+/// The proposal classifier's windows in `gray` (see [`ProposalNet`]) as
+/// candidate boxes of at least `min_width` pixels: each the box a detector would draw around
+/// the eyes the window expects, upright and unsheared, marked as a near miss (the network
+/// must be as sure of it as of the cascade's near misses, [`NEAR_MISS_MIN_FACE_SCORE`]).
+fn proposal_detections(net: &ProposalNet, gray: &GrayImage, min_width: f64) -> Vec<Detection> {
+    let params = ProposalParams {
+        min_eye_distance: min_width * EYE_DISTANCE_PER_BOX_WIDTH,
+        ..ProposalParams::default()
+    };
+    net.propose(gray, &params)
+        .into_iter()
+        .map(|p| {
+            let width = p.eye_distance / EYE_DISTANCE_PER_BOX_WIDTH;
+            Detection {
+                face_box: box_around_eyes(p.eyes_midpoint, width, width, 0.0),
+                view_k: 0.0,
+                view_roll: 0.0,
+                neighbors: 0,
+                near_miss: true,
+            }
+        })
+        .collect()
+}
+
 /// Of detections whose boxes overlap (IoU 0.3 or more), the strongest: a detection before a
 /// near miss, then most detector neighbours, then the view least warped (smaller |shear|, then
 /// smaller |roll|).
@@ -2137,6 +2247,91 @@ mod tests {
             "the most confident of the three overlapping"
         );
         assert!(kept[1].1.is_none() && kept[1].0.x == 400.0);
+    }
+
+    /// A proposal expecting eyes `distance` apart with their midpoint at `eyes`.
+    fn proposal_at(eyes: Point, distance: f64) -> Detection {
+        let width = distance / EYE_DISTANCE_PER_BOX_WIDTH;
+        Detection {
+            face_box: box_around_eyes(eyes, width, width, 0.0),
+            view_k: 0.0,
+            view_roll: 0.0,
+            neighbors: 0,
+            near_miss: true,
+        }
+    }
+
+    #[test]
+    fn a_proposal_counts_only_for_the_face_its_window_shows() {
+        let window = proposal_at(Point::new(200.0, 100.0), 40.0);
+        let (eyes, distance) = proposal_eyes(&window);
+        assert!(eyes.distance(Point::new(200.0, 100.0)) < 1e-9 && (distance - 40.0).abs() < 1e-9);
+        let located = |dx: f64, dy: f64, d: f64| FaceReport {
+            right_eye: Point::new(200.0 + dx - d / 2.0, 100.0 + dy),
+            left_eye: Point::new(200.0 + dx + d / 2.0, 100.0 + dy),
+            ..face(Some(0.1), 0.9)
+        };
+        assert!(proposal_shows(&window, &located(0.0, 0.0, 40.0)));
+        // Up to half the window's eye distance away, and 1.5 times larger or smaller.
+        assert!(proposal_shows(&window, &located(12.0, 12.0, 30.0)));
+        assert!(!proposal_shows(&window, &located(0.0, 21.0, 40.0)));
+        assert!(!proposal_shows(&window, &located(-21.0, 0.0, 40.0)));
+        assert!(!proposal_shows(&window, &located(0.0, 0.0, 61.0)));
+        assert!(!proposal_shows(&window, &located(0.0, 0.0, 26.0)));
+    }
+
+    #[test]
+    fn a_proposal_on_a_face_found_or_inside_it_is_not_searched() {
+        // A face found with eyes 60 px apart at (300, 200), in its detector's box.
+        let width = 60.0 / EYE_DISTANCE_PER_BOX_WIDTH;
+        let found_box = box_around_eyes(Point::new(300.0, 200.0), width, width, 0.0);
+        let found = vec![(
+            found_box,
+            Some(FaceReport {
+                face_box: found_box,
+                right_eye: Point::new(270.0, 200.0),
+                left_eye: Point::new(330.0, 200.0),
+                ..face(Some(0.1), 0.9)
+            }),
+        )];
+        // The same face, a little off: its box holds both eyes.
+        assert!(!proposal_is_new(
+            &proposal_at(Point::new(305.0, 195.0), 55.0),
+            &found
+        ));
+        // A small window on the face's nose, whose box holds neither eye.
+        let nose = proposal_at(Point::new(300.0, 240.0), 20.0);
+        assert!(!nose.face_box.contains(Point::new(270.0, 200.0)));
+        assert!(!proposal_is_new(&nose, &found));
+        // A face beside it, two and a half eye distances away, and any face where none was
+        // found (or only a box that gave no face).
+        assert!(proposal_is_new(
+            &proposal_at(Point::new(450.0, 200.0), 60.0),
+            &found
+        ));
+        assert!(proposal_is_new(&nose, &[]));
+        assert!(proposal_is_new(&nose, &[(found_box, None)]));
+        // A window about a small "face" found on a large face's nose, holding neither of its
+        // eyes: the large face is searched.
+        let small_box = box_around_eyes(Point::new(300.0, 240.0), 50.0, 50.0, 0.0);
+        let small = vec![(
+            small_box,
+            Some(FaceReport {
+                face_box: small_box,
+                right_eye: Point::new(290.0, 240.0),
+                left_eye: Point::new(310.0, 240.0),
+                ..face(Some(0.1), 0.9)
+            }),
+        )];
+        let large = proposal_at(Point::new(300.0, 225.0), 60.0);
+        assert!(small_box.contains(proposal_eyes(&large).0));
+        assert!(large.face_box.contains(Point::new(290.0, 240.0)));
+        assert!(proposal_is_new(&large, &small));
+        // The same window at the small face's size is not.
+        assert!(!proposal_is_new(
+            &proposal_at(Point::new(300.0, 240.0), 20.0),
+            &small
+        ));
     }
 
     #[test]

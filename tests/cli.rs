@@ -144,8 +144,10 @@ fn min_face_skips_smaller_boxes() {
 
 /// `--shear-hypotheses` sets the de-sheared views searched when the image as it is gives no
 /// face: a face sheared by 0.7 is missed as it is and in the view de-sheared by -0.7 (sheared
-/// further), and found and measured in the view de-sheared by 0.7. (The turned views are
-/// switched off for the miss: turned by 12 degrees, the view de-sheared by -0.7 finds it.)
+/// further), and found and measured in the view de-sheared by 0.7. (The turned views and the
+/// face proposals are switched off for the miss: turned by 12 degrees, the view de-sheared by
+/// -0.7 finds it, and a proposal window on the image as it is leads the network to it, read
+/// 0.72.)
 #[test]
 fn shear_hypotheses_choose_the_views_searched() {
     let dir = tempfile::tempdir().expect("temp");
@@ -153,8 +155,18 @@ fn shear_hypotheses_choose_the_views_searched() {
     let k_with = |options: &[&str]| estimate_json(&img, options)["k"].as_f64();
     assert_eq!(k_with(&["--no-shear-search"]), None);
     assert_eq!(
-        k_with(&["--shear-hypotheses=-0.7", "--no-roll-search"]),
+        k_with(&[
+            "--shear-hypotheses=-0.7",
+            "--no-roll-search",
+            "--no-proposals"
+        ]),
         None
+    );
+    let found_by_a_window = k_with(&["--shear-hypotheses=-0.7", "--no-roll-search"])
+        .expect("found through a face proposal");
+    assert!(
+        (found_by_a_window - 0.7).abs() <= 0.05,
+        "{found_by_a_window}"
     );
     let k = k_with(&["--shear-hypotheses=0.7"]).expect("found in the de-sheared view");
     assert!((k - 0.7).abs() <= 0.05, "{k}");

@@ -1,4 +1,4 @@
-//! OpenCV-compatible Viola-Jones face detection on Haar cascades.
+//! Face detection: OpenCV-compatible Viola-Jones on Haar cascades, and face proposals.
 //!
 //! The detector reproduces OpenCV 4's `CascadeClassifier::detectMultiScale` for Haar cascades
 //! closely enough that its boxes coincide with OpenCV's on ordinary photos: same scale list,
@@ -18,14 +18,20 @@
 //! * `integral`: sum, squared-sum and tilted integral images;
 //! * `resize`: the bit-exact pyramid resize and OpenCV's grey conversion;
 //! * `viola_jones`: the multi-scale sliding window and variance normalisation;
-//! * `grouping`: OpenCV's `groupRectangles`.
+//! * `grouping`: OpenCV's `groupRectangles`;
+//! * `proposals` ([`ProposalNet`]): a small convolutional window classifier, trained by this
+//!   project on sheared and rolled faces, whose windows the thorough face search
+//!   (`pipeline::FaceSearch::Thorough`) adds to the cascade's boxes as candidates for faces
+//!   the cascade misses.
 
 mod cascade;
 mod grouping;
 mod integral;
+mod proposals;
 mod resize;
 mod viola_jones;
 
 pub use cascade::Cascade;
+pub use proposals::{Proposal, ProposalNet, ProposalParams};
 pub use resize::to_gray_opencv;
 pub use viola_jones::{DetectorParams, FaceDetector, NearMisses, NEAR_MISS_MAX_IOU};

@@ -19,6 +19,7 @@ use serde::Deserialize;
 
 use crate::error::{Error, Result};
 use crate::geometry::Point;
+use crate::modelfile::ModelFile;
 
 /// Landmarks the network locates, in this order.
 pub const LANDMARK_NAMES: [&str; 4] = ["right_eye", "left_eye", "nose", "mouth"];
@@ -151,14 +152,6 @@ pub struct NetOutput {
     pub face_logit: f64,
 }
 
-fn read_u32(bytes: &[u8], at: usize) -> Result<u32> {
-    bytes
-        .get(at..at + 4)
-        .and_then(|b| b.try_into().ok())
-        .map(u32::from_le_bytes)
-        .ok_or_else(|| Error::ModelFile("truncated header".into()))
-}
-
 impl LandmarkNet {
     /// The network built into the library.
     pub fn embedded() -> Result<Self> {
@@ -171,21 +164,8 @@ impl LandmarkNet {
     /// little-endian `f32`, in the header's order. Every layer must match the topology in the
     /// module docs.
     pub fn from_bytes(bytes: &[u8]) -> Result<Self> {
-        if bytes.get(..8) != Some(MAGIC.as_slice()) {
-            return Err(Error::ModelFile(
-                "not a landmark network (bad magic)".into(),
-            ));
-        }
-        let version = read_u32(bytes, 8)?;
-        if version != VERSION {
-            return Err(Error::ModelFile(format!("unsupported version {version}")));
-        }
-        let header_len = read_u32(bytes, 12)? as usize;
-        let header_bytes = bytes
-            .get(16..16 + header_len)
-            .ok_or_else(|| Error::ModelFile("truncated header".into()))?;
-        let header: Header = serde_json::from_slice(header_bytes)
-            .map_err(|e| Error::ModelFile(format!("header: {e}")))?;
+        let (header, mut file): (Header, _) =
+            ModelFile::open(bytes, MAGIC, VERSION, "a landmark network")?;
         let expected = Self::topology(&header)?;
         if header.layers.len() != expected.len() {
             return Err(Error::ModelFile(format!(
@@ -194,23 +174,6 @@ impl LandmarkNet {
                 expected.len()
             )));
         }
-        let mut at = 16 + header_len;
-        let mut take = |n: usize| -> Result<Vec<f32>> {
-            let end = at + 4 * n;
-            let raw = bytes
-                .get(at..end)
-                .ok_or_else(|| Error::ModelFile("truncated weights".into()))?;
-            at = end;
-            let values: Vec<f32> = raw
-                .chunks_exact(4)
-                .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-                .collect();
-            if values.iter().all(|v| v.is_finite()) {
-                Ok(values)
-            } else {
-                Err(Error::ModelFile("a weight is not finite".into()))
-            }
-        };
         let mut layers = Vec::with_capacity(expected.len());
         for (spec, want) in header.layers.iter().zip(&expected) {
             let matches = spec.name == want.0
@@ -226,8 +189,8 @@ impl LandmarkNet {
                 )));
             }
             let kernel = spec.kernel.max(1);
-            let weight = take(spec.outputs * spec.inputs * kernel * kernel)?;
-            let bias = take(spec.outputs)?;
+            let weight = file.take(spec.outputs * spec.inputs * kernel * kernel)?;
+            let bias = file.take(spec.outputs)?;
             layers.push(Conv {
                 inputs: spec.inputs,
                 outputs: spec.outputs,
@@ -238,12 +201,7 @@ impl LandmarkNet {
                 bias,
             });
         }
-        if at != bytes.len() {
-            return Err(Error::ModelFile(format!(
-                "{} bytes after the last layer",
-                bytes.len() - at
-            )));
-        }
+        file.finish()?;
         let geometry_ok = header.crop_eye_distances.is_finite()
             && header.crop_eye_distances > 0.0
             && header.eyes_above_centre.is_finite();
@@ -598,7 +556,7 @@ fn copy_short(dst: &mut [f32], src: &[f32]) {
 /// channels are its columns. With the `gemm` crate so, one forward pass took 0.81-0.83 ms
 /// instead of the 1.00-1.03 ms of the `matrixmultiply` crate used before (criterion, the two
 /// builds one after the other in both orders; README, *Performance*).
-fn matmul(a: &[f32], b: &[f32], c: &mut [f32], m: usize, k: usize, n: usize) {
+pub(crate) fn matmul(a: &[f32], b: &[f32], c: &mut [f32], m: usize, k: usize, n: usize) {
     assert!(a.len() >= m * k && b.len() >= k * n && c.len() >= m * n);
     // `gemm` computes dst = alpha dst + beta lhs rhs and takes each column stride before the
     // row stride; with `read_dst` false, alpha (0) is not used and dst is overwritten.

@@ -105,6 +105,11 @@ pub struct ModelArgs {
     /// *Detection under shear* and *Performance*).
     #[arg(long)]
     pub quick: bool,
+    /// No face proposals: the thorough search takes candidate boxes from the cascade only,
+    /// not also from the built-in window classifier trained on sheared faces (see the README's
+    /// *Detection under shear*, "Face proposals"). --quick uses none anyway.
+    #[arg(long)]
+    pub no_proposals: bool,
     /// With --quick: search every de-sheared and turned view of every image anyway, not only
     /// when the views before gave no trusted face (the thorough search always does).
     #[arg(long, conflicts_with = "no_shear_search", requires = "quick")]

@@ -23,7 +23,7 @@ use args::{
 };
 use batch::{collect_inputs, run_ordered, Input};
 use report::JsonLine;
-use unshear::detect::{Cascade, DetectorParams, FaceDetector};
+use unshear::detect::{Cascade, DetectorParams, FaceDetector, ProposalNet};
 use unshear::filters::{EyeFilters, FilterType};
 use unshear::imageio::{self, WriteOptions};
 use unshear::landmarks::LandmarkNet;
@@ -115,6 +115,11 @@ fn load_models(m: &ModelArgs) -> Result<Unshear> {
         None => LandmarkNet::embedded().context("loading the built-in landmark network")?,
     };
     unshear.set_network(Some(network));
+    if !m.no_proposals {
+        let proposals =
+            ProposalNet::embedded().context("loading the built-in face proposal classifier")?;
+        unshear.set_proposals(Some(proposals));
+    }
     if let Some(locator) = m.locator {
         unshear.set_locator(locator.into());
     }
