@@ -274,15 +274,10 @@ fn searching_every_view_finds_a_second_face_sheared_beyond_the_cascade() {
     }
 }
 
-/// The fallback cascade is asked only when the main detector gives no accepted estimate: with a
-/// main detector that cannot fire (its smallest box is larger than the image), the fallback
-/// (`haarcascade_frontalface_default`) finds each fixture face, its box mapped onto alt2's
-/// size, and the shear is estimated within 0.05 as with alt2; without a fallback nothing is
-/// found.
-#[test]
-fn fallback_cascade_finds_what_the_main_detector_misses() {
+/// A corrector (built-in filters) whose cascade cannot fire: its smallest box is larger than
+/// any test image.
+fn blind_corrector() -> Unshear {
     use unshear::detect::{Cascade, DetectorParams, FaceDetector};
-    use unshear::pipeline::FallbackDetector;
     let blind = FaceDetector::new(
         Cascade::frontal_face_alt2(),
         DetectorParams {
@@ -291,7 +286,19 @@ fn fallback_cascade_finds_what_the_main_detector_misses() {
         },
     );
     let filters = unshear::filters::EyeFilters::embedded().expect("built-in filters");
-    let mut unshear = Unshear::new(blind, filters);
+    Unshear::new(blind, filters)
+}
+
+/// The fallback cascade is asked only when the main detector gives no accepted estimate: with a
+/// main detector that cannot fire (its smallest box is larger than the image), the fallback
+/// (`haarcascade_frontalface_default`) finds each fixture face, its box mapped onto alt2's
+/// size, and the shear is estimated within 0.05 as with alt2; without a fallback nothing is
+/// found.
+#[test]
+fn fallback_cascade_finds_what_the_main_detector_misses() {
+    use unshear::detect::DetectorParams;
+    use unshear::pipeline::FallbackDetector;
+    let mut unshear = blind_corrector();
     // The quick search, whose views are all on OpenCV's scale ladder as the fallback's are (the
     // thorough search scans some views half a scale step up, which moves its box sizes).
     let mut alt2 = Unshear::with_defaults().expect("built-in models");
@@ -322,16 +329,8 @@ fn fallback_cascade_finds_what_the_main_detector_misses() {
 /// estimated within 0.05; without proposals nothing is found.
 #[test]
 fn face_proposals_find_what_the_cascade_misses() {
-    use unshear::detect::{Cascade, DetectorParams, FaceDetector, ProposalNet};
-    let blind = FaceDetector::new(
-        Cascade::frontal_face_alt2(),
-        DetectorParams {
-            min_size: (10_000, 10_000),
-            ..DetectorParams::default()
-        },
-    );
-    let filters = unshear::filters::EyeFilters::embedded().expect("built-in filters");
-    let mut unshear = Unshear::new(blind, filters);
+    use unshear::detect::ProposalNet;
+    let mut unshear = blind_corrector();
     unshear.set_network(Some(
         unshear::landmarks::LandmarkNet::embedded().expect("built-in network"),
     ));

@@ -27,6 +27,7 @@ use serde::Deserialize;
 
 use crate::error::{Error, Result};
 use crate::geometry::Point;
+use crate::landmarks::net::{add_bias, matmul, Tensor};
 use crate::landmarks::{CROP_EYE_DISTANCES, EYES_ABOVE_CENTRE};
 use crate::modelfile::ModelFile;
 
@@ -400,24 +401,6 @@ fn with_edge_border(image: &GrayImage, border: u32) -> GrayImage {
     })
 }
 
-/// A `channels x height x width` activation.
-#[derive(Debug, Clone, Default)]
-struct Tensor {
-    data: Vec<f32>,
-    channels: usize,
-    height: usize,
-    width: usize,
-}
-
-impl Tensor {
-    fn resize(&mut self, channels: usize, height: usize, width: usize) {
-        self.channels = channels;
-        self.height = height;
-        self.width = width;
-        self.data.resize(channels * height * width, 0.0);
-    }
-}
-
 #[derive(Debug, Default)]
 struct Buffers {
     input: Tensor,
@@ -459,7 +442,7 @@ fn valid_conv(layer: &Layer, input: &Tensor, output: &mut Tensor, columns: &mut 
         }
         columns
     };
-    crate::landmarks::net::matmul(
+    matmul(
         &layer.weight,
         source,
         &mut output.data,
@@ -467,14 +450,7 @@ fn valid_conv(layer: &Layer, input: &Tensor, output: &mut Tensor, columns: &mut 
         depth,
         plane,
     );
-    for (o, b) in output.data.chunks_exact_mut(plane).zip(&layer.bias) {
-        for v in o.iter_mut() {
-            *v += b;
-            if layer.relu && *v < 0.0 {
-                *v = 0.0;
-            }
-        }
-    }
+    add_bias(&mut output.data, plane, &layer.bias, layer.relu);
 }
 
 #[cfg(test)]

@@ -86,17 +86,19 @@ struct Conv {
     bias: Vec<f32>,
 }
 
-/// A `channels x height x width` activation.
+/// A `channels x height x width` activation (also the face proposal classifier's,
+/// `detect::proposals`).
 #[derive(Debug, Clone, Default)]
-struct Tensor {
-    data: Vec<f32>,
-    channels: usize,
-    height: usize,
-    width: usize,
+pub(crate) struct Tensor {
+    pub(crate) data: Vec<f32>,
+    pub(crate) channels: usize,
+    pub(crate) height: usize,
+    pub(crate) width: usize,
 }
 
 impl Tensor {
-    fn resize(&mut self, channels: usize, height: usize, width: usize) {
+    /// Sets the shape; the buffer only grows.
+    pub(crate) fn resize(&mut self, channels: usize, height: usize, width: usize) {
         self.channels = channels;
         self.height = height;
         self.width = width;
@@ -411,10 +413,15 @@ fn conv(layer: &Conv, input: &Tensor, output: &mut Tensor, buffers: &mut Im2col)
         depth,
         plane,
     );
-    for (o, b) in output.data.chunks_exact_mut(plane).zip(&layer.bias) {
+    add_bias(&mut output.data, plane, &layer.bias, layer.relu);
+}
+
+/// Adds each channel's bias to its `plane` values of `data`, then the ReLU if `relu`.
+pub(crate) fn add_bias(data: &mut [f32], plane: usize, bias: &[f32], relu: bool) {
+    for (o, b) in data.chunks_exact_mut(plane).zip(bias) {
         for v in o.iter_mut() {
             *v += b;
-            if layer.relu && *v < 0.0 {
+            if relu && *v < 0.0 {
                 *v = 0.0;
             }
         }
