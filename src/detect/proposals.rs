@@ -27,7 +27,7 @@ use serde::Deserialize;
 
 use crate::error::{Error, Result};
 use crate::geometry::Point;
-use crate::landmarks::net::{add_bias, matmul, Tensor};
+use crate::landmarks::net::{conv_padded, Conv, Im2col, Tensor};
 use crate::landmarks::{CROP_EYE_DISTANCES, EYES_ABOVE_CENTRE};
 use crate::modelfile::ModelFile;
 
@@ -81,19 +81,6 @@ struct Header {
     layers: Vec<LayerSpec>,
 }
 
-/// One unpadded convolution.
-#[derive(Debug, Clone)]
-struct Layer {
-    inputs: usize,
-    outputs: usize,
-    kernel: usize,
-    stride: usize,
-    relu: bool,
-    /// `outputs x (inputs * kernel * kernel)`, row-major (PyTorch's layout).
-    weight: Vec<f32>,
-    bias: Vec<f32>,
-}
-
 /// A place where the classifier sees a face.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Proposal {
@@ -133,7 +120,8 @@ impl Default for ProposalParams {
 #[derive(Debug, Clone)]
 pub struct ProposalNet {
     window: usize,
-    layers: Vec<Layer>,
+    /// Unpadded convolutions.
+    layers: Vec<Conv>,
     /// Pixels between neighbouring windows' outputs (the product of the strides).
     stride: usize,
 }
@@ -160,7 +148,7 @@ impl ProposalNet {
                 header.window
             )));
         }
-        let mut layers: Vec<Layer> = Vec::with_capacity(header.layers.len());
+        let mut layers: Vec<Conv> = Vec::with_capacity(header.layers.len());
         let mut side = header.window;
         let mut channels = 1;
         let mut stride = 1;
@@ -181,7 +169,7 @@ impl ProposalNet {
             let weights = spec.outputs * spec.inputs * spec.kernel * spec.kernel;
             let weight = file.take(weights)?;
             let bias = file.take(spec.outputs)?;
-            layers.push(Layer {
+            layers.push(Conv {
                 inputs: spec.inputs,
                 outputs: spec.outputs,
                 kernel: spec.kernel,
@@ -279,9 +267,9 @@ impl ProposalNet {
         let mut last_in_a = false;
         for (i, layer) in self.layers.iter().enumerate() {
             match (i, last_in_a) {
-                (0, _) => valid_conv(layer, input, a, columns),
-                (_, true) => valid_conv(layer, a, b, columns),
-                (_, false) => valid_conv(layer, b, a, columns),
+                (0, _) => conv_padded(layer, input, a, columns, 0),
+                (_, true) => conv_padded(layer, a, b, columns, 0),
+                (_, false) => conv_padded(layer, b, a, columns, 0),
             }
             last_in_a = i == 0 || !last_in_a;
         }
@@ -406,51 +394,7 @@ struct Buffers {
     input: Tensor,
     a: Tensor,
     b: Tensor,
-    columns: Vec<f32>,
-}
-
-/// `layer` applied without padding to `input` into `output`, through im2col and one matrix
-/// product.
-fn valid_conv(layer: &Layer, input: &Tensor, output: &mut Tensor, columns: &mut Vec<f32>) {
-    let (k, s) = (layer.kernel, layer.stride);
-    let (h, w) = (input.height, input.width);
-    let (ho, wo) = ((h - k) / s + 1, (w - k) / s + 1);
-    output.resize(layer.outputs, ho, wo);
-    let plane = ho * wo;
-    let depth = layer.inputs * k * k;
-    let source: &[f32] = if k == 1 && s == 1 {
-        &input.data
-    } else {
-        columns.resize(depth * plane, 0.0);
-        let mut rows = columns.chunks_exact_mut(plane);
-        for channel in input.data.chunks_exact(h * w) {
-            for ky in 0..k {
-                for kx in 0..k {
-                    let Some(row) = rows.next() else { break };
-                    for (oy, out) in row.chunks_exact_mut(wo).enumerate() {
-                        let line = &channel[(oy * s + ky) * w + kx..];
-                        if s == 1 {
-                            out.copy_from_slice(&line[..wo]);
-                        } else {
-                            for (o, v) in out.iter_mut().zip(line.iter().step_by(s)) {
-                                *o = *v;
-                            }
-                        }
-                    }
-                }
-            }
-        }
-        columns
-    };
-    matmul(
-        &layer.weight,
-        source,
-        &mut output.data,
-        layer.outputs,
-        depth,
-        plane,
-    );
-    add_bias(&mut output.data, plane, &layer.bias, layer.relu);
+    columns: Im2col,
 }
 
 #[cfg(test)]

@@ -73,17 +73,18 @@ struct Header {
     layers: Vec<LayerSpec>,
 }
 
-/// One convolution (or dense layer: a 1x1 convolution of a 1x1 input).
+/// One convolution (or dense layer: a 1x1 convolution of a 1x1 input); also the face proposal
+/// classifier's layers (`detect::proposals`).
 #[derive(Debug, Clone)]
-struct Conv {
-    inputs: usize,
-    outputs: usize,
-    kernel: usize,
-    stride: usize,
-    relu: bool,
+pub(crate) struct Conv {
+    pub(crate) inputs: usize,
+    pub(crate) outputs: usize,
+    pub(crate) kernel: usize,
+    pub(crate) stride: usize,
+    pub(crate) relu: bool,
     /// `outputs x (inputs * kernel * kernel)`, row-major (PyTorch's layout).
-    weight: Vec<f32>,
-    bias: Vec<f32>,
+    pub(crate) weight: Vec<f32>,
+    pub(crate) bias: Vec<f32>,
 }
 
 /// A `channels x height x width` activation (also the face proposal classifier's,
@@ -389,11 +390,23 @@ impl LandmarkNet {
     }
 }
 
-/// `layer` applied to `input` into `output` (resized), through im2col and one matrix product.
+/// `layer` applied to `input` into `output` (resized), through im2col and one matrix product,
+/// with the "same" zero padding of `kernel / 2` the network was trained with.
 fn conv(layer: &Conv, input: &Tensor, output: &mut Tensor, buffers: &mut Im2col) {
+    conv_padded(layer, input, output, buffers, layer.kernel / 2);
+}
+
+/// [`conv`] with a zero border `pad` wide (0: an unpadded convolution, as the face proposal
+/// classifier's).
+pub(crate) fn conv_padded(
+    layer: &Conv,
+    input: &Tensor,
+    output: &mut Tensor,
+    buffers: &mut Im2col,
+    pad: usize,
+) {
     debug_assert_eq!(input.channels, layer.inputs);
     let (k, s) = (layer.kernel, layer.stride);
-    let pad = k / 2;
     let (h, w) = (input.height, input.width);
     let ho = (h + 2 * pad - k) / s + 1;
     let wo = (w + 2 * pad - k) / s + 1;
@@ -403,7 +416,7 @@ fn conv(layer: &Conv, input: &Tensor, output: &mut Tensor, buffers: &mut Im2col)
     let source: &[f32] = if k == 1 && s == 1 {
         &input.data
     } else {
-        im2col(layer, input, (ho, wo), buffers)
+        im2col(layer, input, (ho, wo), pad, buffers)
     };
     matmul(
         &layer.weight,
@@ -430,7 +443,7 @@ pub(crate) fn add_bias(data: &mut [f32], plane: usize, bias: &[f32], relu: bool)
 
 /// The buffers of [`im2col`]: the input with its zero border, and the column matrix.
 #[derive(Debug, Clone, Default)]
-struct Im2col {
+pub(crate) struct Im2col {
     padded: Vec<f32>,
     columns: Vec<f32>,
 }
@@ -439,7 +452,7 @@ struct Im2col {
 /// holds, for each output pixel, the input value under kernel tap `(ky, kx)` of channel `ci`,
 /// zero where the tap falls in the padding.
 ///
-/// The input is first copied into a buffer with a zero border `k / 2` wide and each row split
+/// The input is first copied into a buffer with a zero border `pad` wide and each row split
 /// by column phase (for stride `s`, the columns `0, s, 2s, ...`, then `1, s + 1, ...`, and so
 /// on), so that every row of every tap is one contiguous copy with no test for the border. With
 /// the border tested per row and strided reads, this copy took about a third of a forward
@@ -449,10 +462,10 @@ fn im2col<'a>(
     layer: &Conv,
     input: &Tensor,
     (ho, wo): (usize, usize),
+    pad: usize,
     buffers: &'a mut Im2col,
 ) -> &'a [f32] {
     let (k, s) = (layer.kernel, layer.stride);
-    let pad = k / 2;
     let (h, w) = (input.height, input.width);
     let hp = h + 2 * pad;
     // Each padded row is `s` phases of `phase_len` values; padded column `x` is value `x / s`
@@ -776,7 +789,7 @@ mod tests {
             let pad = k / 2;
             let ho = (h + 2 * pad - k) / s + 1;
             let wo = (w + 2 * pad - k) / s + 1;
-            let got = im2col(&l, &x, (ho, wo), &mut buffers).to_vec();
+            let got = im2col(&l, &x, (ho, wo), pad, &mut buffers).to_vec();
             let want = im2col_direct(&l, &x, ho, wo);
             assert_eq!(got.len(), want.len(), "{ci} {k} {s} {h} {w}");
             for (i, (a, b)) in got.iter().zip(&want).enumerate() {
