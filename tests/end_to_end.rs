@@ -263,11 +263,22 @@ fn searching_every_view_finds_a_second_face_sheared_beyond_the_cascade() {
         unshear.set_search_every_view(true);
         faces.sort_by(|a, b| a.face_box.x.total_cmp(&b.face_box.x));
         // The still face reads as it does alone (the second face does not disturb it), the
-        // moving one within 0.05 of its shear.
+        // moving one within 0.05 of its shear. "As it does alone": to within how much the
+        // network's estimate of one face depends on where its search starts (the box differs
+        // in the pair). A still's face may stop at its first crop when that reads within
+        // `landmarks::SHEAR_TOLERANCE` (0.03) of the crop's shear, and from six starts the
+        // fixture face's estimates spread over 0.019 (`landmarks` test
+        // `the_estimate_hardly_depends_on_the_start`, bound 0.025); here 0.004 against 0.016.
+        // With the tolerance of 0.01 before, this bound was 0.01.
         let alone = unshear.estimate_gray(&still).faces[0].k_measured;
         let (a, b) = (faces[0].k_measured, faces[1].k_measured);
+        let bound = if locator == Locator::Network {
+            0.025
+        } else {
+            0.01
+        };
         assert!(
-            (a - alone).abs() <= 0.01,
+            (a - alone).abs() <= bound,
             "{locator:?}: still face {a} alone {alone}"
         );
         assert!((b - 0.7).abs() <= 0.05, "{locator:?}: moving face {b}");
