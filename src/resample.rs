@@ -47,29 +47,25 @@ pub fn resample_rows(
     // Only the band's rows: a row's taps depend on its own index from the window's top alone.
     let ys = taps(y0, scale, rows.clone(), ih);
     // Only the image columns some output column reads.
-    let col_lo = xs.iter().map(|t| t.first).min().unwrap_or(0);
-    let col_hi = xs
-        .iter()
-        .map(|t| t.first + t.weights.len())
-        .max()
-        .unwrap_or(0);
+    let col_lo = xs.spans.iter().map(|t| t.first).min().unwrap_or(0);
+    let col_hi = xs.spans.iter().map(|t| t.first + t.len).max().unwrap_or(0);
     let span = col_hi.saturating_sub(col_lo);
     let raw = gray.as_raw();
     let mut column_pass = vec![0f32; span];
     let mut out = vec![0f32; width * rows.len()];
-    for (j, ty) in ys.iter().enumerate() {
+    for (j, ty) in ys.spans.iter().enumerate() {
         column_pass.iter_mut().for_each(|v| *v = 0.0);
-        for (k, &w) in ty.weights.iter().enumerate() {
+        for (k, &w) in ys.weights(ty).iter().enumerate() {
             let row = &raw[(ty.first + k) * iw..(ty.first + k + 1) * iw];
             for (c, v) in column_pass.iter_mut().enumerate() {
                 *v += w * f32::from(row[col_lo + c]);
             }
         }
         let out_row = &mut out[j * width..(j + 1) * width];
-        for (o, tx) in out_row.iter_mut().zip(&xs) {
+        for (o, tx) in out_row.iter_mut().zip(&xs.spans) {
             let start = tx.first - col_lo;
-            *o = tx
-                .weights
+            *o = xs
+                .weights(tx)
                 .iter()
                 .zip(&column_pass[start..])
                 .map(|(w, v)| w * v)
@@ -86,14 +82,26 @@ fn copy_clamped(gray: &GrayImage, x0: f64, y0: f64, width: usize, rows: Range<us
     let clamp = |v: i64, len: i64| v.clamp(0, len - 1) as usize;
     let (x0, y0) = (x0 as i64, y0 as i64);
     let raw = gray.as_raw();
-    // Saturating casts: windows far outside the image simply repeat its edge.
+    let mut out = Vec::with_capacity(width * rows.len());
+    let row_of = |j: usize| {
+        // Saturating casts: windows far outside the image simply repeat its edge.
+        let y = clamp(y0.saturating_add(j as i64), ih);
+        &raw[y * iw as usize..(y + 1) * iw as usize]
+    };
+    if x0 >= 0 && x0.saturating_add(width as i64) <= iw {
+        // Every column inside: each row is one run of the image's row (a loop the compiler
+        // vectorises; the landmark network's crops of most faces read the image so).
+        let columns = x0 as usize..x0 as usize + width;
+        for j in rows {
+            out.extend(row_of(j)[columns.clone()].iter().map(|&v| f32::from(v)));
+        }
+        return out;
+    }
     let columns: Vec<usize> = (0..width as i64)
         .map(|i| clamp(x0.saturating_add(i), iw))
         .collect();
-    let mut out = Vec::with_capacity(width * rows.len());
     for j in rows {
-        let y = clamp(y0.saturating_add(j as i64), ih);
-        let row = &raw[y * iw as usize..(y + 1) * iw as usize];
+        let row = row_of(j);
         out.extend(columns.iter().map(|&x| f32::from(row[x])));
     }
     out
@@ -112,37 +120,62 @@ pub fn bilinear_clamped(src: &[f32], w: usize, h: usize, x: f64, y: f64) -> f32 
     top + (bottom - top) * fy
 }
 
-/// The source samples and weights of one output sample (a run of consecutive indices).
-struct Taps {
+/// Where one output sample's source samples and weights are: a run of consecutive source
+/// indices from `first`, its `len` weights at `offset` in [`Taps::all`].
+struct Span {
     first: usize,
-    weights: Vec<f32>,
+    offset: usize,
+    len: usize,
+}
+
+/// The taps of a run of output samples: one [`Span`] per sample, all weights in one buffer (one
+/// allocation instead of one per output sample).
+struct Taps {
+    spans: Vec<Span>,
+    all: Vec<f32>,
+}
+
+impl Taps {
+    /// The weights of `span`.
+    fn weights(&self, span: &Span) -> &[f32] {
+        &self.all[span.offset..span.offset + span.len]
+    }
 }
 
 /// Triangle-filter taps for the output samples `i in indices` at `origin + i * scale` over `len`
 /// source samples; indices outside `[0, len)` are clamped to the edge (edge replication) and
 /// their weights merged.
-fn taps(origin: f64, scale: f64, indices: Range<usize>, len: usize) -> Vec<Taps> {
+fn taps(origin: f64, scale: f64, indices: Range<usize>, len: usize) -> Taps {
     let radius = scale.max(1.0);
     let last = len.saturating_sub(1) as isize;
-    indices
-        .map(|i| {
-            let c = origin + i as f64 * scale;
-            let lo = (c - radius).ceil() as isize;
-            let hi = (c + radius).floor() as isize;
-            let (first, end) = (lo.clamp(0, last) as usize, hi.clamp(0, last) as usize);
-            let mut weights = vec![0f32; end - first + 1];
-            let mut total = 0.0;
-            for s in lo..=hi {
-                let w = (1.0 - ((s as f64 - c) / radius).abs()).max(0.0);
-                weights[(s.clamp(0, last) as usize) - first] += w as f32;
-                total += w;
-            }
-            if total > 0.0 {
-                weights.iter_mut().for_each(|w| *w /= total as f32);
-            }
-            Taps { first, weights }
-        })
-        .collect()
+    let mut taps = Taps {
+        spans: Vec::with_capacity(indices.len()),
+        all: Vec::new(),
+    };
+    for i in indices {
+        let c = origin + i as f64 * scale;
+        let lo = (c - radius).ceil() as isize;
+        let hi = (c + radius).floor() as isize;
+        let (first, end) = (lo.clamp(0, last) as usize, hi.clamp(0, last) as usize);
+        let offset = taps.all.len();
+        taps.all.resize(offset + end - first + 1, 0.0);
+        let weights = &mut taps.all[offset..];
+        let mut total = 0.0;
+        for s in lo..=hi {
+            let w = (1.0 - ((s as f64 - c) / radius).abs()).max(0.0);
+            weights[(s.clamp(0, last) as usize) - first] += w as f32;
+            total += w;
+        }
+        if total > 0.0 {
+            weights.iter_mut().for_each(|w| *w /= total as f32);
+        }
+        taps.spans.push(Span {
+            first,
+            offset,
+            len: weights.len(),
+        });
+    }
+    taps
 }
 
 #[cfg(test)]
@@ -210,6 +243,19 @@ mod tests {
         }
         assert_eq!(copied[0], f32::from(img.get_pixel(0, 0)[0]));
         assert_eq!(copied[20 * 14 - 1], f32::from(img.get_pixel(12, 8)[0]));
+        // A window whose columns all lie inside (the row-run path), hanging over the top and
+        // bottom edges: each pixel is the image's, the rows outside repeat the edge rows.
+        let inside = resample(&img, 2.0, -2.0, 1.0, 11, 14);
+        for (j, row) in inside.chunks_exact(11).enumerate() {
+            let y = (j as i64 - 2).clamp(0, 8) as u32;
+            for (i, &v) in row.iter().enumerate() {
+                assert_eq!(
+                    v,
+                    f32::from(img.get_pixel(2 + i as u32, y)[0]),
+                    "({i}, {j})"
+                );
+            }
+        }
     }
 
     #[test]
