@@ -39,9 +39,11 @@ impl<'a> ModelFile<'a> {
         if found != version {
             return Err(Error::ModelFile(format!("unsupported version {found}")));
         }
-        let header_len = read_u32(bytes, 12)? as usize;
+        let header_end = (read_u32(bytes, 12)? as usize)
+            .checked_add(16)
+            .ok_or_else(|| Error::ModelFile("truncated header".into()))?;
         let header_bytes = bytes
-            .get(16..16 + header_len)
+            .get(16..header_end)
             .ok_or_else(|| Error::ModelFile("truncated header".into()))?;
         let header = serde_json::from_slice(header_bytes)
             .map_err(|e| Error::ModelFile(format!("header: {e}")))?;
@@ -49,7 +51,7 @@ impl<'a> ModelFile<'a> {
             header,
             Self {
                 bytes,
-                at: 16 + header_len,
+                at: header_end,
             },
         ))
     }

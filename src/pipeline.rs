@@ -1690,17 +1690,21 @@ fn proposal_detections(net: &ProposalNet, gray: &GrayImage, min_width: f64) -> V
     };
     net.propose(gray, &params)
         .into_iter()
-        .map(|p| {
-            let width = p.eye_distance / EYE_DISTANCE_PER_BOX_WIDTH;
-            Detection {
-                face_box: box_around_eyes(p.eyes_midpoint, width, width, 0.0),
-                view_k: 0.0,
-                view_roll: 0.0,
-                neighbors: 0,
-                near_miss: true,
-            }
-        })
+        .map(|p| proposal_detection(p.eyes_midpoint, p.eye_distance))
         .collect()
+}
+
+/// The candidate box of a proposal window expecting eyes `eye_distance` apart with their
+/// midpoint at `eyes` (see [`proposal_detections`]); [`proposal_eyes`] reads them back.
+fn proposal_detection(eyes: Point, eye_distance: f64) -> Detection {
+    let width = eye_distance / EYE_DISTANCE_PER_BOX_WIDTH;
+    Detection {
+        face_box: box_around_eyes(eyes, width, width, 0.0),
+        view_k: 0.0,
+        view_roll: 0.0,
+        neighbors: 0,
+        near_miss: true,
+    }
 }
 
 /// Of detections whose boxes overlap (IoU 0.3 or more), the strongest: a detection before a
@@ -2249,21 +2253,9 @@ mod tests {
         assert!(kept[1].1.is_none() && kept[1].0.x == 400.0);
     }
 
-    /// A proposal expecting eyes `distance` apart with their midpoint at `eyes`.
-    fn proposal_at(eyes: Point, distance: f64) -> Detection {
-        let width = distance / EYE_DISTANCE_PER_BOX_WIDTH;
-        Detection {
-            face_box: box_around_eyes(eyes, width, width, 0.0),
-            view_k: 0.0,
-            view_roll: 0.0,
-            neighbors: 0,
-            near_miss: true,
-        }
-    }
-
     #[test]
     fn a_proposal_counts_only_for_the_face_its_window_shows() {
-        let window = proposal_at(Point::new(200.0, 100.0), 40.0);
+        let window = proposal_detection(Point::new(200.0, 100.0), 40.0);
         let (eyes, distance) = proposal_eyes(&window);
         assert!(eyes.distance(Point::new(200.0, 100.0)) < 1e-9 && (distance - 40.0).abs() < 1e-9);
         let located = |dx: f64, dy: f64, d: f64| FaceReport {
@@ -2296,17 +2288,17 @@ mod tests {
         )];
         // The same face, a little off: its box holds both eyes.
         assert!(!proposal_is_new(
-            &proposal_at(Point::new(305.0, 195.0), 55.0),
+            &proposal_detection(Point::new(305.0, 195.0), 55.0),
             &found
         ));
         // A small window on the face's nose, whose box holds neither eye.
-        let nose = proposal_at(Point::new(300.0, 240.0), 20.0);
+        let nose = proposal_detection(Point::new(300.0, 240.0), 20.0);
         assert!(!nose.face_box.contains(Point::new(270.0, 200.0)));
         assert!(!proposal_is_new(&nose, &found));
         // A face beside it, two and a half eye distances away, and any face where none was
         // found (or only a box that gave no face).
         assert!(proposal_is_new(
-            &proposal_at(Point::new(450.0, 200.0), 60.0),
+            &proposal_detection(Point::new(450.0, 200.0), 60.0),
             &found
         ));
         assert!(proposal_is_new(&nose, &[]));
@@ -2323,13 +2315,13 @@ mod tests {
                 ..face(Some(0.1), 0.9)
             }),
         )];
-        let large = proposal_at(Point::new(300.0, 225.0), 60.0);
+        let large = proposal_detection(Point::new(300.0, 225.0), 60.0);
         assert!(small_box.contains(proposal_eyes(&large).0));
         assert!(large.face_box.contains(Point::new(290.0, 240.0)));
         assert!(proposal_is_new(&large, &small));
         // The same window at the small face's size is not.
         assert!(!proposal_is_new(
-            &proposal_at(Point::new(300.0, 240.0), 20.0),
+            &proposal_detection(Point::new(300.0, 240.0), 20.0),
             &small
         ));
     }

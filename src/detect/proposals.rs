@@ -264,20 +264,16 @@ impl ProposalNet {
             b,
             columns,
         } = buffers;
-        let mut last_in_a = false;
+        // The activation is always left in `a`; swapping two tensors moves no values.
         for (i, layer) in self.layers.iter().enumerate() {
-            match (i, last_in_a) {
-                (0, _) => conv_padded(layer, input, a, columns, 0),
-                (_, true) => conv_padded(layer, a, b, columns, 0),
-                (_, false) => conv_padded(layer, b, a, columns, 0),
+            if i == 0 {
+                conv_padded(layer, input, a, columns, 0);
+            } else {
+                conv_padded(layer, a, b, columns, 0);
+                std::mem::swap(a, b);
             }
-            last_in_a = i == 0 || !last_in_a;
         }
-        if last_in_a {
-            a
-        } else {
-            b
-        }
+        a
     }
 
     /// The windows of one pyramid level, for eyes `eye_distance` image pixels apart, that reach

@@ -256,8 +256,8 @@ fn supersample(
     }
 }
 
-/// [`supersample`] with [`bilinear_inside`] reads of `source` (samples, samples per row),
-/// every read point known to lie inside it, in two sweeps per row and offset pair: first every
+/// [`supersample`] with bilinear reads of `source` (samples, samples per row) that need no
+/// clamping, every read point known to lie inside it, in two sweeps per row and offset pair: first every
 /// read point's corner sample and fractions ([`corner_and_fractions`]), arithmetic with no
 /// memory reads that the compiler vectorises, then the reads themselves ([`bilinear_at`]).
 /// Interleaved, the address arithmetic was most of the render's time; this is the same
