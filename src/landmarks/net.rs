@@ -430,6 +430,9 @@ pub(crate) fn conv_padded(
 }
 
 /// Adds each channel's bias to its `plane` values of `data`, then the ReLU if `relu`.
+///
+/// Also compiled for AVX2, chosen at run time (the same operations per value, so the same bits).
+#[multiversion::multiversion(targets("x86_64+avx2"))]
 pub(crate) fn add_bias(data: &mut [f32], plane: usize, bias: &[f32], relu: bool) {
     for (o, b) in data.chunks_exact_mut(plane).zip(bias) {
         for v in o.iter_mut() {
@@ -458,6 +461,9 @@ pub(crate) struct Im2col {
 /// the border tested per row and strided reads, this copy took about a third of a forward
 /// pass, more than half as long as the matrix products. The matrix is the same, value for
 /// value.
+///
+/// Also compiled for AVX2, chosen at run time (the same operations per value, so the same bits).
+#[multiversion::multiversion(targets("x86_64+avx2"))]
 fn im2col<'a>(
     layer: &Conv,
     input: &Tensor,
@@ -611,6 +617,9 @@ pub(crate) fn matmul(a: &[f32], b: &[f32], c: &mut [f32], m: usize, k: usize, n:
 }
 
 /// `target += nearest-neighbour 2x upsampling of low` (the pyramid's merge).
+///
+/// Also compiled for AVX2, chosen at run time (the same operations per value, so the same bits).
+#[multiversion::multiversion(targets("x86_64+avx2"))]
 fn add_upsampled(target: &mut Tensor, low: &Tensor) {
     debug_assert_eq!(target.channels, low.channels);
     let (h, w) = (target.height, target.width);
