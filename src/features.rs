@@ -426,16 +426,34 @@ impl NormalizedFace {
             let x_start = u0 + MARGIN_X as f64;
             let first = x_start.floor();
             let fx = (x_start - first) as f32;
-            for (i, o) in row.iter_mut().enumerate() {
-                let x = first + i as f64;
-                *o = if x >= 0.0 && (x as usize) < last_x {
-                    let a = x as usize;
-                    let top = row0[a] + (row0[a + 1] - row0[a]) * fx;
-                    let bottom = row1[a] + (row1[a + 1] - row1[a]) * fx;
-                    top + (bottom - top) * fy
-                } else {
-                    self.sample(u0 + i as f64, v)
-                };
+            // The samples whose column pair `first + i`, `first + i + 1` lies inside the face
+            // are one run, `lo..hi`, read without a test per sample (so the compiler vectorises
+            // it); those before and after it take the edge-replicating `sample`. NaN gives an
+            // empty run.
+            let lo = (-first).max(0.0).min(size as f64) as usize;
+            let hi = (last_x as f64 - first).clamp(lo as f64, size as f64) as usize;
+            for (i, o) in row[..lo].iter_mut().enumerate() {
+                *o = self.sample(u0 + i as f64, v);
+            }
+            if hi > lo {
+                let a = (first + lo as f64) as usize;
+                let n = hi - lo;
+                let (left0, right0) = (&row0[a..a + n], &row0[a + 1..a + n + 1]);
+                let (left1, right1) = (&row1[a..a + n], &row1[a + 1..a + n + 1]);
+                for ((((o, &l0), &r0), &l1), &r1) in row[lo..hi]
+                    .iter_mut()
+                    .zip(left0)
+                    .zip(right0)
+                    .zip(left1)
+                    .zip(right1)
+                {
+                    let top = l0 + (r0 - l0) * fx;
+                    let bottom = l1 + (r1 - l1) * fx;
+                    *o = top + (bottom - top) * fy;
+                }
+            }
+            for (i, o) in row.iter_mut().enumerate().skip(hi) {
+                *o = self.sample(u0 + i as f64, v);
             }
         }
     }
@@ -1313,6 +1331,78 @@ mod tests {
         assert_eq!(argmax(&patch[0..16]), 8);
         // Row j = 8 is v = 50: the line appears at 100 - 0.25 * 8 = 98, patch column 6.
         assert_eq!(argmax(&patch[8 * 16..9 * 16]), 6);
+    }
+
+    /// The per-sample loop `NormalizedFace::patch` replaced: the same arithmetic, with the
+    /// inside test made for every sample.
+    fn patch_sample_by_sample(
+        face: &NormalizedFace,
+        centre: Point,
+        size: usize,
+        k: f64,
+        pivot_v: f64,
+    ) -> Vec<f32> {
+        let half = (size / 2) as f64;
+        let last_x = face.width.saturating_sub(1);
+        let mut out = vec![0f32; size * size];
+        for (j, row) in out.chunks_exact_mut(size).enumerate() {
+            let v = centre.y - half + j as f64;
+            let u0 = centre.x - half + k * (v - pivot_v);
+            let y = (v + MARGIN_Y as f64).clamp(0.0, (face.height - 1) as f64);
+            let y0 = y.floor() as usize;
+            let y1 = (y0 + 1).min(face.height - 1);
+            let fy = (y - y0 as f64) as f32;
+            let (row0, row1) = (face.row(y0), face.row(y1));
+            let x_start = u0 + MARGIN_X as f64;
+            let first = x_start.floor();
+            let fx = (x_start - first) as f32;
+            for (i, o) in row.iter_mut().enumerate() {
+                let x = first + i as f64;
+                *o = if x >= 0.0 && (x as usize) < last_x {
+                    let a = x as usize;
+                    let top = row0[a] + (row0[a + 1] - row0[a]) * fx;
+                    let bottom = row1[a] + (row1[a + 1] - row1[a]) * fx;
+                    top + (bottom - top) * fy
+                } else {
+                    face.sample(u0 + i as f64, v)
+                };
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn patches_are_those_of_the_sample_by_sample_loop_bit_for_bit() {
+        let img = GrayImage::from_fn(200, 180, |x, y| {
+            image::Luma([((x * 7 + y * 3) % 97 + (x * y) % 41) as u8])
+        });
+        let face = NormalizedFace::new(&img, Rect::new(30.0, 20.0, 120.0, 120.0));
+        let (w, h) = (face.width as f64, face.height as f64);
+        let mut checked = 0;
+        for size in [1, 16, 24, 64] {
+            for k in [0.0, 0.37, -0.8] {
+                // Inside, across the left and right edges, wholly outside either side, and
+                // a centre that is not a number.
+                for (cx, cy) in [
+                    (60.3, 70.6),
+                    (3.2 - MARGIN_X as f64, 10.4),
+                    (w - MARGIN_X as f64 - 5.7, 30.1),
+                    (-300.0, 50.5),
+                    (w + 200.0, 50.5),
+                    (20.25, h),
+                    (f64::NAN, 40.0),
+                ] {
+                    let centre = Point::new(cx, cy);
+                    let mut patch = vec![0f32; size * size];
+                    face.patch(centre, size, k, 40.0, &mut patch);
+                    let reference = patch_sample_by_sample(&face, centre, size, k, 40.0);
+                    let same = crate::testing::same_bits(&patch, &reference);
+                    assert!(same, "size {size}, k {k}, centre {centre:?}");
+                    checked += 1;
+                }
+            }
+        }
+        assert_eq!(checked, 4 * 3 * 7);
     }
 
     #[test]

@@ -47,6 +47,8 @@ pub mod landmarks;
 mod modelfile;
 pub mod pipeline;
 pub mod resample;
+#[cfg(test)]
+mod testing;
 pub mod train;
 pub mod video;
 pub mod warp;

@@ -1778,10 +1778,14 @@ fn same_face(a: &FaceReport, b: &FaceReport) -> bool {
     apart < SAME_FACE_EYE_DISTANCES * eye_distance
 }
 
-/// Of faces whose boxes overlap (IoU 0.3 or more) or whose estimates located the same face
-/// ([`same_face`]), the one with the most confident estimate (a face without an estimate last),
-/// preferring one whose box holds both eyes it located: a box the features were followed out
-/// of (from a false alarm beside the face, say) does not show where the face is.
+/// Of faces whose boxes overlap (IoU 0.3 or more), whose estimates located the same face
+/// ([`same_face`]), or of which one's box holds both eyes located in another kept before it, the
+/// one with the most confident estimate (a face without an estimate last), preferring one whose
+/// box holds both eyes it located: a box the features were followed out of (from a false alarm
+/// beside the face, say) does not show where the face is. A box holding both eyes of a face
+/// already kept is that face seen again, often from a view that takes in the whole head, whose
+/// walk of crops may have stopped on something else (eyes of two faces, say) before reaching
+/// it; two people's faces cannot both fit in one face box.
 fn most_confident_of_overlapping(
     mut all: Vec<(Rect, Option<FaceReport>)>,
 ) -> Vec<(Rect, Option<FaceReport>)> {
@@ -1798,7 +1802,9 @@ fn most_confident_of_overlapping(
     let mut kept: Vec<(Rect, Option<FaceReport>)> = Vec::new();
     for f in all {
         let duplicate = |k: &(Rect, Option<FaceReport>)| {
-            k.0.iou(&f.0) >= 0.3 || matches!((&k.1, &f.1), (Some(a), Some(b)) if same_face(a, b))
+            k.0.iou(&f.0) >= 0.3
+                || matches!((&k.1, &f.1), (Some(a), Some(b)) if same_face(a, b))
+                || matches!(&k.1, Some(a) if f.0.contains(a.right_eye) && f.0.contains(a.left_eye))
         };
         if !kept.iter().any(duplicate) {
             kept.push(f);
@@ -2358,6 +2364,23 @@ mod tests {
         ]);
         assert_eq!(kept.len(), 1, "{kept:?}");
         assert_eq!(kept[0].0, tight);
+        // A large box around the head whose walk stopped on other points (its located eyes far
+        // from the face's, not the same face by `same_face`) but which holds the kept face's
+        // eyes: the same face seen again, not reported.
+        let stopped_elsewhere = FaceReport {
+            right_eye: Point::new(90.0, 40.0),
+            left_eye: Point::new(230.0, 0.0),
+            ..face(Some(-0.5), 0.01)
+        };
+        let kept = most_confident_of_overlapping(vec![
+            (around_the_head, Some(stopped_elsewhere)),
+            (tight, Some(located(100.0, 0.9))),
+        ]);
+        assert_eq!(kept.len(), 1, "{kept:?}");
+        assert_eq!(kept[0].0, tight);
+        // Without the tight face, it is reported (its own box holds its eyes).
+        let alone = most_confident_of_overlapping(vec![(around_the_head, Some(stopped_elsewhere))]);
+        assert_eq!(alone.len(), 1);
     }
 
     #[test]

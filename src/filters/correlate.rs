@@ -12,6 +12,36 @@ use super::Filter;
 /// (11 x 11, the usual choice for 64 x 64 correlation planes, e.g. Bolme et al. 2009).
 const PSR_EXCLUSION: isize = 5;
 
+/// The 24 other places of a 5 x 5 neighbourhood, nearest first: on a smooth correlation plane
+/// most places have a higher neighbour next to them, so the local-maximum test (all of them at
+/// most the centre) is mostly settled by the first one or two (it read the far corner first).
+const NEIGHBOURHOOD: [(isize, isize); 24] = [
+    (1, 0),
+    (-1, 0),
+    (0, 1),
+    (0, -1),
+    (1, 1),
+    (-1, -1),
+    (1, -1),
+    (-1, 1),
+    (2, 0),
+    (-2, 0),
+    (0, 2),
+    (0, -2),
+    (2, 1),
+    (2, -1),
+    (-2, 1),
+    (-2, -1),
+    (1, 2),
+    (-1, 2),
+    (1, -2),
+    (-1, -2),
+    (2, 2),
+    (-2, -2),
+    (2, -2),
+    (-2, 2),
+];
+
 /// A correlation peak.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Peak {
@@ -170,9 +200,9 @@ impl Correlator {
                 if v > highest.0 {
                     highest = (v, dx, dy);
                 }
-                let local = (-2..=2).all(|ey| {
-                    (-2..=2).all(|ex| (ex, ey) == (0, 0) || self.value(dx + ex, dy + ey) <= v)
-                });
+                let local = NEIGHBOURHOOD
+                    .iter()
+                    .all(|&(ex, ey)| self.value(dx + ex, dy + ey) <= v);
                 if local {
                     maxima.push((v, dx, dy));
                 }
@@ -237,8 +267,8 @@ impl Correlator {
     /// The last plane's value at displacement `(dx, dy)` from the centre, indices modulo the size.
     pub fn value(&self, dx: isize, dy: isize) -> f32 {
         let n = self.size as isize;
-        let x = dx.rem_euclid(n) as usize;
-        let y = dy.rem_euclid(n) as usize;
+        let x = wrap(dx, n) as usize;
+        let y = wrap(dy, n) as usize;
         self.plane[y * self.size + x]
     }
 
@@ -246,12 +276,12 @@ impl Correlator {
         let n = self.size as isize;
         let (mut sum, mut sum_sq, mut count) = (0f64, 0f64, 0usize);
         for y in 0..n {
+            // Circular distance to the peak, so the exclusion square wraps like the plane does.
+            let ddy = wrap(y - pdy, n);
+            let near_y = ddy <= PSR_EXCLUSION || ddy >= n - PSR_EXCLUSION;
             for x in 0..n {
-                // Circular distance to the peak, so the exclusion square wraps like the plane does.
-                let ddx = (x - pdx).rem_euclid(n);
-                let ddy = (y - pdy).rem_euclid(n);
+                let ddx = wrap(x - pdx, n);
                 let near_x = ddx <= PSR_EXCLUSION || ddx >= n - PSR_EXCLUSION;
-                let near_y = ddy <= PSR_EXCLUSION || ddy >= n - PSR_EXCLUSION;
                 if near_x && near_y {
                     continue;
                 }
@@ -283,17 +313,26 @@ impl Correlator {
             &self.inverse
         };
         fft.process_with_scratch(&mut self.buffer, &mut self.scratch);
-        transpose(&self.buffer, &mut self.transposed, self.size);
+        transpose::transpose(&self.buffer, &mut self.transposed, self.size, self.size);
         fft.process_with_scratch(&mut self.transposed, &mut self.scratch);
-        transpose(&self.transposed, &mut self.buffer, self.size);
+        transpose::transpose(&self.transposed, &mut self.buffer, self.size, self.size);
     }
 }
 
-fn transpose(src: &[Complex32], dst: &mut [Complex32], n: usize) {
-    for y in 0..n {
-        for x in 0..n {
-            dst[x * n + y] = src[y * n + x];
-        }
+/// `i` modulo `n` (`n > 0`), in `0..n`: `rem_euclid` without its division for the values the
+/// correlation planes are read at, which lie within one period of `0..n` (the peak searches read
+/// every value of their windows' 5 x 5 neighbourhoods, and `rem_euclid`'s division was most of
+/// that time).
+#[inline]
+fn wrap(i: isize, n: isize) -> isize {
+    if (0..n).contains(&i) {
+        i
+    } else if (-n..0).contains(&i) {
+        i + n
+    } else if (n..2 * n).contains(&i) {
+        i - n
+    } else {
+        i.rem_euclid(n)
     }
 }
 
@@ -323,6 +362,28 @@ fn parabola_offset(left: f32, centre: f32, right: f32) -> f64 {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn the_neighbourhood_is_the_5x5_square_less_its_centre() {
+        let mut places: Vec<(isize, isize)> = super::NEIGHBOURHOOD.to_vec();
+        places.sort_unstable();
+        let square: Vec<(isize, isize)> = (-2..=2)
+            .flat_map(|x| (-2..=2).map(move |y| (x, y)))
+            .filter(|&p| p != (0, 0))
+            .collect();
+        assert_eq!(places, square);
+    }
+
+    #[test]
+    fn wrapping_is_the_euclidean_remainder() {
+        for n in [1isize, 2, 7, 64] {
+            for i in -3 * n - 2..3 * n + 2 {
+                assert_eq!(super::wrap(i, n), i.rem_euclid(n), "{i} mod {n}");
+            }
+        }
+        assert_eq!(super::wrap(isize::MIN, 64), isize::MIN.rem_euclid(64));
+        assert_eq!(super::wrap(isize::MAX, 64), isize::MAX.rem_euclid(64));
+    }
+
     use super::*;
 
     fn blob(n: usize, cx: f64, cy: f64, sigma: f64) -> Vec<f32> {

@@ -602,10 +602,7 @@ mod tests {
                     for budget in [5, 2] {
                         let fast = f.render_with(&img, budget).expect("valid frame");
                         let plain = render_pixel_by_pixel(&f, &img, budget);
-                        let same = fast
-                            .iter()
-                            .zip(&plain)
-                            .all(|(a, b)| a.to_bits() == b.to_bits());
+                        let same = crate::testing::same_bits(&fast, &plain);
                         assert!(same, "{f:?} with {budget} reads per axis");
                         frames += 1;
                     }

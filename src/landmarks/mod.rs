@@ -185,6 +185,24 @@ pub const VIDEO_ROLL_TOLERANCE: f64 = 0.02;
 /// *Performance*).
 pub const NO_FACE_PASSES: usize = 3;
 
+/// From this crop on, the walk of crops stops when the shear changed no less than at the crop
+/// before (`stalled` in this module): the estimate is no longer closing in on a fixed point (it
+/// swings about one, or drifts), and further crops cost time without settling it.
+///
+/// Measured on all 928 Caltech development faces at nine shears (README, *Accuracy*): the same
+/// accuracy or a little better in every column, and 19% fewer crops (faces took 2.60 crops on
+/// average instead of 3.20 on the first 150 faces at k = 0 and +-0.40). It needed the pipeline to
+/// also join a report from a box that holds both eyes of a face already kept (a walk stopped
+/// early can end away from where another box's walk put that face).
+pub const STALL_PASSES: usize = 3;
+
+/// Whether a walk of crops has stalled at crop `pass` (1 for the first): from [`STALL_PASSES`]
+/// on, the estimated shear changed by `change` at this crop and by `previous_change` at the
+/// one before, and did not shrink.
+fn stalled(pass: usize, change: f64, previous_change: f64) -> bool {
+    pass >= STALL_PASSES && change >= previous_change
+}
+
 /// The face score under which a crop counts as showing no face for [`NO_FACE_PASSES`]: the
 /// network's face score on non-face crops is mostly below 0.001, on faces mostly above 0.9.
 pub const NO_FACE_SCORE: f64 = 0.001;
@@ -262,7 +280,8 @@ fn upright_distance(a: Point, b: Point, k: f64) -> f64 {
 /// estimated from what it found, and the face is cropped again around the eyes found with
 /// that shear and roll removed, until the estimate stops changing ([`SHEAR_TOLERANCE`],
 /// [`ROLL_TOLERANCE`]) or after [`MAX_PASSES`] crops. The network then sees a nearly upright,
-/// unsheared face, the kind it reads best. Something that is not a face is given up on after
+/// unsheared face, the kind it reads best. A walk whose estimate stops closing in is ended too
+/// ([`STALL_PASSES`]), and something that is not a face is given up on after
 /// [`NO_FACE_PASSES`] crops. `None` when a crop cannot be made or the network's reading is not
 /// finite.
 pub fn locate(
@@ -286,6 +305,7 @@ pub fn locate_within(
     let mut frame = start;
     let mut found = None;
     let mut best_face_score = f64::NEG_INFINITY;
+    let mut previous_change = f64::INFINITY;
     for pass in 1..=budget.max_passes.max(1) {
         let crop = frame.render_with(gray, budget.max_supersampling)?;
         let out = net.run(&crop, ws);
@@ -294,8 +314,11 @@ pub fn locate_within(
             && (face.roll - frame.roll).abs() < budget.roll_tolerance;
         best_face_score = best_face_score.max(face.face);
         let no_face = pass >= NO_FACE_PASSES && best_face_score < NO_FACE_SCORE;
+        let change = (face.k - frame.k).abs();
+        let stalled = stalled(pass, change, previous_change);
+        previous_change = change;
         found = Some(face);
-        if converged || no_face {
+        if converged || no_face || stalled {
             break;
         }
         let distance = upright_distance(face.right_eye, face.left_eye, face.k);
@@ -415,6 +438,19 @@ mod tests {
         let lo = estimates.iter().copied().fold(f64::INFINITY, f64::min);
         let hi = estimates.iter().copied().fold(f64::NEG_INFINITY, f64::max);
         assert!(hi - lo < 0.025, "estimates {estimates:?}");
+    }
+
+    #[test]
+    fn a_walk_stalls_when_its_change_stops_shrinking_from_the_third_crop() {
+        assert_eq!(STALL_PASSES, 3);
+        // The first two crops never stall, whatever the changes.
+        assert!(!stalled(1, 0.2, f64::INFINITY));
+        assert!(!stalled(2, 0.2, 0.1));
+        // From the third: a shrinking change goes on, an equal or growing one stops.
+        assert!(!stalled(3, 0.05, 0.1));
+        assert!(stalled(3, 0.1, 0.1));
+        assert!(stalled(4, 0.12, 0.1));
+        assert!(!stalled(8, 0.031, 0.04));
     }
 
     #[test]
