@@ -1,5 +1,6 @@
 //! Pipeline benchmarks: the estimate for one face once it is detected (target <= 1 ms), with the
-//! landmark network (the default) and with the filters, one forward pass of the network and one
+//! landmark network (the default) and with the filters, upright and sheared by 0.3 (where the
+//! network's walk takes more than one crop), one forward pass of the network and one
 //! rendering of its crop; a
 //! tilted head, searched again upright, separately; face detection and the face proposals on a
 //! 1920x1080 frame, and the whole
@@ -86,6 +87,32 @@ fn bench(c: &mut Criterion) {
     c.bench_function(
         "estimate one face tilted 22 degrees (after detection)",
         |b| b.iter(|| unshear.estimate_detection(&tilted, &tilted_face)),
+    );
+
+    // The same face sheared by 0.3, detected as the pipeline detects it (its de-sheared views):
+    // the walk of crops takes several crops here, as real faces do, where the upright bench
+    // face settles in one.
+    let sheared = match unshear::warp::try_apply_shear(
+        &img,
+        unshear::Shear::about_middle(0.3, img.height()),
+        unshear::warp::Interpolation::Linear,
+        unshear::warp::Canvas::Expand,
+    ) {
+        Ok((s, _)) => Unshear::gray(&s),
+        Err(e) => panic!("shear: {e}"),
+    };
+    let Some(&sheared_face) = unshear.detect(&sheared).first() else {
+        panic!("the sheared fixture must be found");
+    };
+    c.bench_function("estimate one face sheared 0.3 (after detection)", |b| {
+        b.iter(|| unshear.estimate_detection(&sheared, &sheared_face))
+    });
+    let Some(&sheared_face_filters) = with_filters.detect(&sheared).first() else {
+        panic!("the sheared fixture must be found with the filters' search too");
+    };
+    c.bench_function(
+        "estimate one face sheared 0.3, filters (after detection)",
+        |b| b.iter(|| with_filters.estimate_detection(&sheared, &sheared_face_filters)),
     );
 
     // A 1920x1080 frame: the fixture enlarged to full height, on a mid-grey canvas.
