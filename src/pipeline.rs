@@ -1654,7 +1654,7 @@ fn proposal_is_new(proposal: &Detection, found: &[(Rect, Option<FaceReport>)]) -
     let b = proposal.face_box;
     found.iter().all(|(_, r)| {
         r.is_none_or(|r| {
-            let holds_it = b.contains(r.right_eye) && b.contains(r.left_eye);
+            let holds_it = holds_eyes(&b, &r);
             let ratio = r.right_eye.distance(r.left_eye) / distance;
             let at_least_as_large = ratio * PROPOSAL_MAX_SCALE >= 1.0;
             let about_as_large = at_least_as_large && ratio <= PROPOSAL_MAX_SCALE;
@@ -1757,6 +1757,11 @@ fn tries_of_group(group: Vec<Detection>) -> Vec<Detection> {
     tries
 }
 
+/// Whether `b` holds both eyes that `report` located.
+fn holds_eyes(b: &Rect, report: &FaceReport) -> bool {
+    b.contains(report.right_eye) && b.contains(report.left_eye)
+}
+
 /// How close (in eye distances, the smaller of the two faces') the eye midpoints of two
 /// estimates must be for them to be one face found twice (`same_face` in this module). Two
 /// people's eye midpoints are two or more eye distances apart even in a crowd.
@@ -1790,10 +1795,8 @@ fn most_confident_of_overlapping(
     mut all: Vec<(Rect, Option<FaceReport>)>,
 ) -> Vec<(Rect, Option<FaceReport>)> {
     let confidence = |r: &Option<FaceReport>| r.as_ref().map_or(-1.0, |r| r.confidence);
-    let holds_its_eyes = |(b, r): &(Rect, Option<FaceReport>)| {
-        r.as_ref()
-            .is_some_and(|r| b.contains(r.right_eye) && b.contains(r.left_eye))
-    };
+    let holds_its_eyes =
+        |(b, r): &(Rect, Option<FaceReport>)| r.as_ref().is_some_and(|r| holds_eyes(b, r));
     all.sort_by(|a, b| {
         holds_its_eyes(b)
             .cmp(&holds_its_eyes(a))
@@ -1804,7 +1807,7 @@ fn most_confident_of_overlapping(
         let duplicate = |k: &(Rect, Option<FaceReport>)| {
             k.0.iou(&f.0) >= 0.3
                 || matches!((&k.1, &f.1), (Some(a), Some(b)) if same_face(a, b))
-                || matches!(&k.1, Some(a) if f.0.contains(a.right_eye) && f.0.contains(a.left_eye))
+                || matches!(&k.1, Some(a) if holds_eyes(&f.0, a))
         };
         if !kept.iter().any(duplicate) {
             kept.push(f);

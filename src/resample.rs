@@ -51,14 +51,10 @@ pub fn resample_rows(
     let col_hi = xs.spans.iter().map(|t| t.first + t.len).max().unwrap_or(0);
     let span = col_hi.saturating_sub(col_lo);
     let raw = gray.as_raw();
-    let widest = xs.spans.iter().map(|t| t.len).max().unwrap_or(0);
-    // Room for the fixed-length horizontal reads below past the last column read.
-    let mut column_pass = vec![0f32; span + widest.max(HORIZONTAL_TAPS_WIDE)];
+    // Room for the fixed-length horizontal reads past the last column read.
+    let mut column_pass = vec![0f32; span + HORIZONTAL_TAPS_WIDE];
     let mut out = vec![0f32; width * rows.len()];
-    let padded = (widest <= HORIZONTAL_TAPS_NARROW)
-        .then(|| PaddedTaps::<HORIZONTAL_TAPS_NARROW>::new(&xs, col_lo));
-    let padded_wide = (widest > HORIZONTAL_TAPS_NARROW && widest <= HORIZONTAL_TAPS_WIDE)
-        .then(|| PaddedTaps::<HORIZONTAL_TAPS_WIDE>::new(&xs, col_lo));
+    let horizontal = Horizontal::new(&xs, col_lo);
     for (j, ty) in ys.spans.iter().enumerate() {
         let sums = &mut column_pass[..span];
         sums.fill(0.0);
@@ -68,24 +64,52 @@ pub fn resample_rows(
                 *v += w * f32::from(p);
             }
         }
-        let out_row = &mut out[j * width..(j + 1) * width];
-        if let Some(taps) = &padded {
-            taps.filter(&column_pass, out_row);
-        } else if let Some(taps) = &padded_wide {
-            taps.filter(&column_pass, out_row);
-        } else {
-            for (o, tx) in out_row.iter_mut().zip(&xs.spans) {
-                let start = tx.first - col_lo;
-                *o = xs
-                    .weights(tx)
-                    .iter()
-                    .zip(&column_pass[start..])
-                    .map(|(w, v)| w * v)
-                    .sum();
+        horizontal.filter(
+            &xs,
+            col_lo,
+            &column_pass,
+            &mut out[j * width..(j + 1) * width],
+        );
+    }
+    out
+}
+
+/// The horizontal pass, chosen once per window by its widest span of taps.
+enum Horizontal {
+    Narrow(PaddedTaps<HORIZONTAL_TAPS_NARROW>),
+    Wide(PaddedTaps<HORIZONTAL_TAPS_WIDE>),
+    /// Each output sample the sum over its own span (spans wider than the wide padding).
+    General,
+}
+
+impl Horizontal {
+    fn new(xs: &Taps, col_lo: usize) -> Self {
+        match xs.spans.iter().map(|t| t.len).max().unwrap_or(0) {
+            w if w <= HORIZONTAL_TAPS_NARROW => Self::Narrow(PaddedTaps::new(xs, col_lo)),
+            w if w <= HORIZONTAL_TAPS_WIDE => Self::Wide(PaddedTaps::new(xs, col_lo)),
+            _ => Self::General,
+        }
+    }
+
+    /// One output row from its column pass (which holds [`HORIZONTAL_TAPS_WIDE`] values past
+    /// the last column read), `xs` the taps this pass was chosen for.
+    fn filter(&self, xs: &Taps, col_lo: usize, column_pass: &[f32], out_row: &mut [f32]) {
+        match self {
+            Self::Narrow(taps) => taps.filter(column_pass, out_row),
+            Self::Wide(taps) => taps.filter(column_pass, out_row),
+            Self::General => {
+                for (o, tx) in out_row.iter_mut().zip(&xs.spans) {
+                    let start = tx.first - col_lo;
+                    *o = xs
+                        .weights(tx)
+                        .iter()
+                        .zip(&column_pass[start..])
+                        .map(|(w, v)| w * v)
+                        .sum();
+                }
             }
         }
     }
-    out
 }
 
 /// Horizontal spans of up to this many taps (enlarging, or shrinking by up to 1.5) are read by

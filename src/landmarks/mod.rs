@@ -310,11 +310,11 @@ pub fn locate_within(
         let crop = frame.render_with(gray, budget.max_supersampling)?;
         let out = net.run(&crop, ws);
         let face = read_face(net, &out, frame, pass)?;
-        let converged = (face.k - frame.k).abs() < budget.shear_tolerance
+        let change = (face.k - frame.k).abs();
+        let converged = change < budget.shear_tolerance
             && (face.roll - frame.roll).abs() < budget.roll_tolerance;
         best_face_score = best_face_score.max(face.face);
         let no_face = pass >= NO_FACE_PASSES && best_face_score < NO_FACE_SCORE;
-        let change = (face.k - frame.k).abs();
         let stalled = stalled(pass, change, previous_change);
         previous_change = change;
         found = Some(face);
