@@ -1,17 +1,16 @@
 //! Pipeline benchmarks: the estimate for one face once it is detected (target <= 1 ms), with the
 //! landmark network (the default) and with the filters, upright and sheared by 0.3 (where the
-//! network's walk takes more than one crop), one forward pass of the network and one
-//! rendering of its crop; a
-//! tilted head, searched again upright, separately; face detection and the face proposals on a
-//! 1920x1080 frame, and the whole
-//! estimate of a frame with one face and with none, with the thorough (default) and the quick
-//! face search. Correction speed is in `benches/warp.rs`.
+//! network's walk takes more than one crop; also held to one crop), one forward pass of the
+//! network and one rendering of its crop; a tilted head, searched again upright, separately;
+//! face detection and the face proposals on a 1920x1080 frame, and the whole estimate of a
+//! frame with one face and with none, with the thorough (default) and the quick face search.
+//! Correction speed is in `benches/warp.rs`.
 //!
 //! Run: `cargo bench --bench pipeline`.
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use image::imageops::FilterType;
-use unshear::landmarks::{LandmarkNet, Workspace};
+use unshear::landmarks::{Budget, LandmarkNet, Workspace};
 use unshear::pipeline::{FaceSearch, Locator};
 use unshear::Unshear;
 
@@ -113,6 +112,19 @@ fn bench(c: &mut Criterion) {
     c.bench_function(
         "estimate one face sheared 0.3, filters (after detection)",
         |b| b.iter(|| with_filters.estimate_detection(&sheared, &sheared_face_filters)),
+    );
+    // The same with the network held to one crop (`--max-crops 1`), the same detection.
+    let mut one_crop = match Unshear::with_defaults() {
+        Ok(u) => u,
+        Err(e) => panic!("models: {e}"),
+    };
+    one_crop.set_network_budget(Budget {
+        max_passes: 1,
+        ..Budget::STILL
+    });
+    c.bench_function(
+        "estimate one face sheared 0.3, one crop (after detection)",
+        |b| b.iter(|| one_crop.estimate_detection(&sheared, &sheared_face)),
     );
 
     // A 1920x1080 frame: the fixture enlarged to full height, on a mid-grey canvas.

@@ -513,6 +513,8 @@ pub struct Unshear {
     thorough: Option<ThoroughDetectors>,
     /// The face proposal classifier of the thorough search ([`Self::set_proposals`]).
     proposals: Option<ProposalNet>,
+    /// The landmark network's work per face in a still ([`Self::set_network_budget`]).
+    network_budget: Budget,
 }
 
 /// The detectors of [`FaceSearch::Thorough`]: both lenient ([`THOROUGH_MIN_NEIGHBORS`]); the
@@ -552,6 +554,7 @@ impl Unshear {
             search_every_view: false,
             thorough: None,
             proposals: None,
+            network_budget: Budget::STILL,
         }
     }
 
@@ -853,6 +856,21 @@ impl Unshear {
     /// previous estimate (0: the nose filter's first estimate alone sets the nostril crops).
     pub fn set_refinements(&mut self, refinements: usize) {
         self.refinements = refinements;
+    }
+
+    /// Sets how much work the landmark network may spend on each face of a still, the
+    /// candidate boxes of the face search included (default [`Budget::STILL`]). Fewer crops
+    /// (`max_passes`) trade accuracy for time: one crop costs about one forward pass of the
+    /// network (README, *Performance*), and the estimate then rests on a crop placed from the
+    /// detector's box instead of around the eyes found (README, *Accuracy*, for what that
+    /// costs). Video has its own budget (`video::ProcessOptions::network_budget`).
+    pub fn set_network_budget(&mut self, budget: Budget) {
+        self.network_budget = budget;
+    }
+
+    /// The landmark network's work per face in a still (see [`Self::set_network_budget`]).
+    pub fn network_budget(&self) -> Budget {
+        self.network_budget
     }
 
     /// The built-in models: OpenCV's `haarcascade_frontalface_alt2`, the trained eye filters,
@@ -1195,7 +1213,7 @@ impl Unshear {
         start_k: f64,
         roll: f64,
     ) -> Option<FaceReport> {
-        self.estimate_turned_within(gray, face_box, start_k, roll, Budget::STILL)
+        self.estimate_turned_within(gray, face_box, start_k, roll, self.network_budget)
     }
 
     /// [`Self::estimate_face_in_turned_view`] with the landmark network limited to `budget`

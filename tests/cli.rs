@@ -102,6 +102,24 @@ fn estimate_reports_the_applied_shear() {
     assert!((k - 0.3).abs() <= 0.05, "k {k}");
 }
 
+/// `--max-crops 1` holds the landmark network to the crop placed from the detector's box: on
+/// this face sheared by 0.3, which the default walk crops twice (README, *Performance*), the
+/// estimate is a different reading (so the limit reaches the network), and still within 0.05.
+#[test]
+fn max_crops_limits_the_network_walk() {
+    let dir = tempfile::tempdir().expect("temp");
+    let img = distorted(dir.path(), 0.3);
+    let walked = estimate_json(&img, &[])["k"].as_f64().expect("k");
+    let one_crop = estimate_json(&img, &["--max-crops", "1"])["k"]
+        .as_f64()
+        .expect("k");
+    assert!((one_crop - 0.3).abs() <= 0.05, "one crop: k {one_crop}");
+    assert!(
+        (one_crop - walked).abs() > 1e-4,
+        "one crop {one_crop} against the walk's {walked}: the limit did not reach the network"
+    );
+}
+
 /// `--min-face` bounds the detector's box size: a bound under the face (about 150 px here)
 /// finds the same face (its box moves by a pixel or two, as OpenCV's does with `minSize`: fewer
 /// small raw hits are averaged into it), one over the face finds none.
@@ -247,7 +265,12 @@ fn usage_errors_exit_2() {
             .assert()
             .code(2);
     }
-    for bad in ["--shear-hypotheses=nan", "--shear-hypotheses=0.3,9"] {
+    for bad in [
+        "--shear-hypotheses=nan",
+        "--shear-hypotheses=0.3,9",
+        "--max-crops=0",
+        "--max-crops=two",
+    ] {
         unshear().args(["estimate", bad, "x.jpg"]).assert().code(2);
     }
     let a = fixture("subject01.normal.jpeg");

@@ -319,6 +319,25 @@ fn command_line_json_folders_and_errors() {
     for (a, b) in causal.iter().zip(&lines) {
         assert_eq!((&a["frame"], &a["k_raw"]), (&b["frame"], &b["k_raw"]));
     }
+    // `--max-crops` reaches video's budget: one crop per face instead of two reads the same
+    // frames a little differently (the first crop is placed from the tracker's box).
+    let out = unshear()
+        .args(["video", "--json", "--max-crops", "1"])
+        .arg(&clip_path)
+        .assert()
+        .success();
+    let one_crop = common::json_lines(&out.get_output().stdout);
+    assert_eq!(one_crop.len(), lines.len());
+    let raw = |l: &serde_json::Value| l["k_raw"].as_f64();
+    assert!(
+        one_crop.iter().zip(&lines).any(|(a, b)| raw(a) != raw(b)),
+        "one crop gave the two crops' raw estimates: the limit did not reach the video"
+    );
+    for (a, b) in one_crop.iter().zip(&lines) {
+        if let (Some(a), Some(b)) = (raw(a), raw(b)) {
+            assert!((a - b).abs() < 0.05, "one crop {a} against two {b}");
+        }
+    }
     // The face objects have the shape `estimate --json` gives.
     let face = &lines[0]["faces"][0];
     let mut keys: Vec<&str> = face

@@ -110,6 +110,12 @@ pub struct ModelArgs {
     /// *Detection under shear*, "Face proposals"). --quick uses none anyway.
     #[arg(long)]
     pub no_proposals: bool,
+    /// Most crops the landmark network reads per face, each re-centred on the eyes found in
+    /// the one before with their shear and roll removed (at least 1): fewer is faster, about
+    /// one forward pass each, and less accurate (see the README's *Performance*) [default: 8
+    /// for stills, stopping earlier when the estimate settles; 2 for `video`].
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..=64))]
+    pub max_crops: Option<u16>,
     /// With --quick: search every de-sheared and turned view of every image anyway, not only
     /// when the views before gave no trusted face (the thorough search always does).
     #[arg(long, conflicts_with = "no_shear_search", requires = "quick")]

@@ -26,7 +26,7 @@ use report::JsonLine;
 use unshear::detect::{Cascade, DetectorParams, FaceDetector, ProposalNet};
 use unshear::filters::{EyeFilters, FilterType};
 use unshear::imageio::{self, WriteOptions};
-use unshear::landmarks::LandmarkNet;
+use unshear::landmarks::{Budget, LandmarkNet};
 use unshear::pipeline::{CorrectOptions, ImageReport, Region};
 use unshear::pipeline::{FaceSearch, FallbackDetector};
 use unshear::{Shear, Unshear};
@@ -124,6 +124,12 @@ fn load_models(m: &ModelArgs) -> Result<Unshear> {
         unshear.set_locator(locator.into());
     }
     unshear.set_refinements(m.refine);
+    if let Some(crops) = m.max_crops {
+        unshear.set_network_budget(Budget {
+            max_passes: usize::from(crops),
+            ..Budget::STILL
+        });
+    }
     if !(0.0..=1.0).contains(&m.min_confidence) {
         bail!("--min-confidence {} is outside 0 to 1", m.min_confidence);
     }

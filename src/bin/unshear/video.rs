@@ -17,6 +17,7 @@ use crate::args::{InterpArg, ModelArgs};
 use crate::report::{face, r4, JsonFace};
 use crate::{load_models, usage_error};
 use unshear::imageio::WriteOptions;
+use unshear::landmarks::Budget;
 use unshear::video::frames::{list_frames, FrameFolderReader, FrameFolderWriter};
 use unshear::video::temporal::{FilterParams, DEFAULT_SMOOTHING_LAG};
 use unshear::video::tracker::TrackerParams;
@@ -237,7 +238,13 @@ pub fn video(a: VideoArgs) -> Result<()> {
             KSourceArg::Raw => KSource::Raw,
         },
         interpolation: a.interp.into(),
-        ..Default::default()
+        network_budget: match a.model.max_crops {
+            Some(crops) => Budget {
+                max_passes: usize::from(crops),
+                ..Budget::VIDEO
+            },
+            None => Budget::VIDEO,
+        },
     };
     let mut processor = VideoProcessor::new(&unshear, options);
     let (mut source, header, protected, made): (Box<dyn FrameSource>, _, _, _) = match input {
