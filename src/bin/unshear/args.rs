@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
+use unshear::landmarks::Budget;
 
 /// Remove rolling-shutter skew (horizontal shear) from photos of people, using the face as the
 /// ruler.
@@ -144,6 +145,16 @@ pub struct ModelArgs {
     /// Worker threads [default: one per core].
     #[arg(long, short = 'j', value_name = "N")]
     pub jobs: Option<usize>,
+}
+
+impl ModelArgs {
+    /// `base` (the stills' or video's budget) held to `--max-crops` crops when it is given.
+    pub fn network_budget(&self, base: Budget) -> Budget {
+        self.max_crops.map_or(base, |crops| Budget {
+            max_passes: usize::from(crops),
+            ..base
+        })
+    }
 }
 
 /// `--locator` values.

@@ -124,12 +124,7 @@ fn load_models(m: &ModelArgs) -> Result<Unshear> {
         unshear.set_locator(locator.into());
     }
     unshear.set_refinements(m.refine);
-    if let Some(crops) = m.max_crops {
-        unshear.set_network_budget(Budget {
-            max_passes: usize::from(crops),
-            ..Budget::STILL
-        });
-    }
+    unshear.set_network_budget(m.network_budget(Budget::STILL));
     if !(0.0..=1.0).contains(&m.min_confidence) {
         bail!("--min-confidence {} is outside 0 to 1", m.min_confidence);
     }

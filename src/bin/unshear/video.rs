@@ -238,13 +238,7 @@ pub fn video(a: VideoArgs) -> Result<()> {
             KSourceArg::Raw => KSource::Raw,
         },
         interpolation: a.interp.into(),
-        network_budget: match a.model.max_crops {
-            Some(crops) => Budget {
-                max_passes: usize::from(crops),
-                ..Budget::VIDEO
-            },
-            None => Budget::VIDEO,
-        },
+        network_budget: a.model.network_budget(Budget::VIDEO),
     };
     let mut processor = VideoProcessor::new(&unshear, options);
     let (mut source, header, protected, made): (Box<dyn FrameSource>, _, _, _) = match input {
