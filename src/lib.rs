@@ -55,6 +55,7 @@ pub mod dev;
 pub mod error;
 pub mod estimate;
 pub mod filters;
+pub(crate) mod fitted;
 pub mod geometry;
 pub mod imageio;
 pub mod locate;
