@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Fits a confidence model (`estimate::confidence`) to an `unshear eval shear --out DIR` run:
+"""Fits a confidence model (`pipeline::confidence`) to an `unshear eval shear --out DIR` run:
 the filters' model of one filter type (`--model umace|asef|mosse`, the features of
 `confidence`) or the landmark network's (`--model network`, the features of
 `network_confidence`), and with `--write-rust` writes it into `src/fitted.rs`.
@@ -46,7 +46,7 @@ def ln(v: float) -> float:
 
 
 def features(s: Sample) -> list[float]:
-    """The features of `estimate::confidence::confidence` (the filters)."""
+    """The features of `pipeline::confidence::confidence` (the filters)."""
     psr = s["psr"]
     disagreement = (
         abs(s["k_nose_tip"] - s["k_mouth"])
@@ -65,7 +65,7 @@ def features(s: Sample) -> list[float]:
 
 
 def network_features(s: Sample) -> list[float]:
-    """The features of `estimate::confidence::network_confidence` (the landmark network)."""
+    """The features of `pipeline::confidence::network_confidence` (the landmark network)."""
     spread = s["spread"]
     k_points = s["k_points"]
     return [

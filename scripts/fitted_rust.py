@@ -45,16 +45,16 @@ DESCRIPTIONS = {
     "EYE_PAIR_WEIGHTS": "Weights of `EYE_PAIR_FEATURES` (`locate::filters`) in a candidate eye "
     "pair's score; the highest score wins. A conditional logit: a softmax over each face's "
     "candidate pairs, fitted to choose the pair nearest the annotated eyes.",
-    "CONFIDENCE_UMACE": "Weights of the features of `estimate::confidence::confidence`, in their "
+    "CONFIDENCE_UMACE": "Weights of the features of `pipeline::confidence::confidence`, in their "
     "order, for UMACE filters: a logistic model of the chance that an estimate is within 0.10 "
     "of the true shear.",
-    "CONFIDENCE_ASEF": "Weights of the features of `estimate::confidence::confidence`, in their "
+    "CONFIDENCE_ASEF": "Weights of the features of `pipeline::confidence::confidence`, in their "
     "order, for ASEF filters: a logistic model of the chance that an estimate is within 0.10 "
     "of the true shear.",
-    "CONFIDENCE_MOSSE": "Weights of the features of `estimate::confidence::confidence`, in their "
+    "CONFIDENCE_MOSSE": "Weights of the features of `pipeline::confidence::confidence`, in their "
     "order, for MOSSE filters: a logistic model of the chance that an estimate is within 0.10 "
     "of the true shear.",
-    "CONFIDENCE_NETWORK": "Weights of the features of `estimate::confidence::network_confidence`, "
+    "CONFIDENCE_NETWORK": "Weights of the features of `pipeline::confidence::network_confidence`, "
     "in their order: a logistic model of the chance that a landmark-network estimate of a face "
     "is within 0.10 of the true shear.",
 }

@@ -27,7 +27,7 @@ pub(crate) const EYE_PAIR_WEIGHTS: [f64; 10] = [
     1.37,  // gradient_symmetry
 ];
 
-/// Weights of the features of `estimate::confidence::confidence`, in their order, for UMACE
+/// Weights of the features of `pipeline::confidence::confidence`, in their order, for UMACE
 /// filters: a logistic model of the chance that an estimate is within 0.10 of the true shear.
 ///
 /// Fitted by `python3 scripts/fit_confidence.py target/eval-umace --model umace --fit-first 300` on
@@ -46,7 +46,7 @@ pub(crate) const CONFIDENCE_UMACE_WEIGHTS: [f64; 7] = [
 /// The intercept of the model of `CONFIDENCE_UMACE_WEIGHTS`.
 pub(crate) const CONFIDENCE_UMACE_INTERCEPT: f64 = -4.204;
 
-/// Weights of the features of `estimate::confidence::confidence`, in their order, for ASEF filters:
+/// Weights of the features of `pipeline::confidence::confidence`, in their order, for ASEF filters:
 /// a logistic model of the chance that an estimate is within 0.10 of the true shear.
 ///
 /// Fitted by `python3 scripts/fit_confidence.py target/eval-asef --model asef --fit-first 300` on
@@ -65,7 +65,7 @@ pub(crate) const CONFIDENCE_ASEF_WEIGHTS: [f64; 7] = [
 /// The intercept of the model of `CONFIDENCE_ASEF_WEIGHTS`.
 pub(crate) const CONFIDENCE_ASEF_INTERCEPT: f64 = -3.803;
 
-/// Weights of the features of `estimate::confidence::confidence`, in their order, for MOSSE
+/// Weights of the features of `pipeline::confidence::confidence`, in their order, for MOSSE
 /// filters: a logistic model of the chance that an estimate is within 0.10 of the true shear.
 ///
 /// Fitted by `python3 scripts/fit_confidence.py target/eval-mosse --model mosse --fit-first 300` on
@@ -84,7 +84,7 @@ pub(crate) const CONFIDENCE_MOSSE_WEIGHTS: [f64; 7] = [
 /// The intercept of the model of `CONFIDENCE_MOSSE_WEIGHTS`.
 pub(crate) const CONFIDENCE_MOSSE_INTERCEPT: f64 = -4.348;
 
-/// Weights of the features of `estimate::confidence::network_confidence`, in their order: a
+/// Weights of the features of `pipeline::confidence::network_confidence`, in their order: a
 /// logistic model of the chance that a landmark-network estimate of a face is within 0.10 of the
 /// true shear.
 ///

@@ -1,17 +1,13 @@
 //! How far each face's estimate can be trusted: logistic models of the chance that it is within
 //! 0.10 of the true shear, fitted by `scripts/fit_confidence.py` (docs/how-it-works.md).
 
-use super::FaceEstimate;
 use crate::detect::boxes::EYE_DISTANCE_PER_BOX_WIDTH;
+use crate::estimate::FaceEstimate;
 use crate::filters::FilterType;
 use crate::fitted;
 use crate::geometry::Rect;
 use crate::locate::filters::FacePoints;
 use crate::locate::network::LocatedFace;
-
-/// Default confidence below which a face's estimate is refused: about the least trustworthy fifth
-/// of the estimates on web photos.
-pub const DEFAULT_MIN_CONFIDENCE: f64 = 0.25;
 
 /// A logistic confidence model: weights of [`confidence`]'s features, in their order, and the
 /// intercept. Fitted by `scripts/fit_confidence.py`, which generates them into `src/fitted.rs`.
