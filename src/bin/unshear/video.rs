@@ -262,6 +262,7 @@ pub fn video(a: VideoArgs) -> Result<()> {
                 },
                 full_range: false,
                 frame_rate: frame_rate_fraction(a.fps),
+                bit_depth: 8,
             };
             let protected = r.paths().to_vec();
             (Box::new(r) as Box<dyn FrameSource>, None, protected, made)
