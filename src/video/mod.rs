@@ -19,6 +19,9 @@
 //! * [`process`]: all of the above per frame ([`VideoProcessor`], which holds frames back
 //!   for the smoother's lag and flushes them at the end) and the threaded
 //!   read → process → write loop ([`run`]).
+//! * [`ffmpeg`]: what the `ffmpeg` and `ffprobe` programs are asked to do for containers (MP4,
+//!   MOV, MKV, WebM): their command lines and the parsing of `ffprobe`'s JSON. The library
+//!   starts no process; the `unshear video` command runs them.
 //!
 //! # Formats
 //!
@@ -43,6 +46,7 @@
 //! depths), not the 0 that still images get.
 
 pub mod color;
+pub mod ffmpeg;
 pub mod frames;
 pub mod process;
 pub mod temporal;
