@@ -1,23 +1,32 @@
-//! `unshear video`: y4m files and pipes, frame folders; per-frame JSON; progress on stderr.
+//! `unshear video`: y4m files and pipes, frame folders, and any container FFmpeg reads and
+//! writes (through the `ffmpeg` program); per-frame JSON; progress on stderr.
 //!
-//! `IN` is a `.y4m` file, `-` (a y4m stream on stdin) or a folder of numbered frames. `OUT` is
-//! `-` (y4m on stdout), a path ending in `.y4m`, or otherwise a folder that receives
-//! `000000.png`, `000001.png`, ... (`--frame-format`). Without `-o` nothing is written (analysis).
+//! `IN` is a y4m file (told by its first bytes, whatever its name), `-` (a y4m stream on stdin),
+//! a folder of numbered frames, or any other file, which `ffmpeg` decodes. `OUT` is `-` (y4m on
+//! stdout), a path ending in `.y4m`, a path with a video container's extension (`.mp4`,
+//! `.mov`, `.mkv`, `.webm`...: `ffmpeg` encodes it, with the input's sound, subtitles, rotation
+//! and colour tags), or otherwise a folder that receives `000000.png`, `000001.png`, ...
+//! (`--frame-format`). Without `-o` nothing is written (analysis). Files are written under a
+//! temporary name beside the output and renamed when complete.
 
 use std::fs::File;
-use std::io::{BufReader, BufWriter, IsTerminal, Write};
+use std::io::{BufReader, BufWriter, IsTerminal, Read, Write};
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
-use anyhow::{Context, Result};
+use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressState, ProgressStyle};
 use serde::Serialize;
 
 use crate::args::{InterpArg, ModelArgs};
+use crate::ffmpeg::{Decoder, Encoder, TempOutput, Tools};
 use crate::report::{face, r4, JsonFace};
-use crate::{load_models, usage_error};
+use crate::{interrupt, load_models, usage_error};
 use unshear::imageio::WriteOptions;
 use unshear::landmarks::Budget;
+use unshear::video::ffmpeg::{
+    decode_args, y4m_target, Capabilities, EncodePlan, EncodeSettings, Probe, StreamAction,
+};
 use unshear::video::frames::{list_frames, FrameFolderReader, FrameFolderWriter};
 use unshear::video::temporal::{FilterParams, DEFAULT_SMOOTHING_LAG};
 use unshear::video::tracker::TrackerParams;
@@ -30,13 +39,28 @@ use unshear::video::{
 /// `unshear video`.
 #[derive(Debug, Args)]
 pub struct VideoArgs {
-    /// Input: a .y4m file, `-` for a y4m stream on stdin, or a folder of numbered frames.
+    /// Input: a video file (MP4, MOV, MKV, WebM... through ffmpeg), a .y4m file, `-` for a
+    /// y4m stream on stdin, or a folder of numbered frames.
     #[arg(value_name = "IN")]
     pub input: PathBuf,
-    /// Output: `-` for y4m on stdout, a .y4m file, or a folder for numbered frames
-    /// [default: none, analysis only].
+    /// Output: a video file (.mp4, .mov, .mkv, .webm...: encoded by ffmpeg, with the input's
+    /// sound, subtitles, rotation and colour tags), `-` for y4m on stdout, a .y4m file, or a
+    /// folder for numbered frames [default: none, analysis only].
     #[arg(short = 'o', long = "output", value_name = "OUT")]
     pub output: Option<PathBuf>,
+    /// The ffmpeg program for video files (ffprobe is looked for beside it) [default: ffmpeg
+    /// on PATH].
+    #[arg(long, value_name = "PATH")]
+    pub ffmpeg: Option<PathBuf>,
+    /// Video encoder of a video-file output, as ffmpeg names it (libx264, libx265,
+    /// libvpx-vp9, libsvtav1...) [default: the input's codec where possible, else libx264,
+    /// libx265 above 8 bits, libvpx-vp9 for .webm].
+    #[arg(long, value_name = "ENCODER")]
+    pub codec: Option<String>,
+    /// Constant quality of a video-file output (lower is better) [default: 18 for libx264, 20
+    /// for libx265, 30 for VP9 and AV1].
+    #[arg(long, value_name = "N")]
+    pub crf: Option<f64>,
     /// Write one JSON line per frame: `--json` to stdout, `--json=FILE` to a file.
     #[arg(
         long,
@@ -151,31 +175,154 @@ fn is_y4m_path(p: &Path) -> bool {
         .is_some_and(|e| e.eq_ignore_ascii_case("y4m"))
 }
 
-/// Where frames come from, and what an output stream's header should be.
-enum Input {
-    Y4m(Box<dyn FrameSource>, Vec<u8>, VideoFormat),
-    Frames(FrameFolderReader),
+/// Video container extensions written through ffmpeg (other paths are frame folders).
+const CONTAINER_EXTENSIONS: &[&str] = &[
+    "mp4", "m4v", "mov", "qt", "mkv", "webm", "avi", "ts", "m2ts", "mts", "mxf", "flv", "ogv",
+    "3gp", "nut",
+];
+
+fn is_container_path(p: &Path) -> bool {
+    !p.is_dir()
+        && p.extension()
+            .and_then(|e| e.to_str())
+            .is_some_and(|e| CONTAINER_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
 }
 
-fn open_input(a: &VideoArgs) -> Result<Input> {
+/// Whether the file starts like a y4m stream.
+fn starts_as_y4m(p: &Path) -> Result<bool> {
+    let mut magic = [0u8; 10];
+    let mut f = File::open(p).with_context(|| format!("opening {}", p.display()))?;
+    let mut n = 0;
+    while n < magic.len() {
+        match f.read(&mut magic[n..]) {
+            Ok(0) => break,
+            Ok(k) => n += k,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e).with_context(|| format!("reading {}", p.display())),
+        }
+    }
+    Ok(&magic[..n] == b"YUV4MPEG2 ")
+}
+
+/// The frames of a y4m file, from its size (for the progress bar).
+fn y4m_file_frames(p: &Path, header: &[u8], format: &VideoFormat) -> Option<u64> {
+    let size = p.metadata().ok()?.len();
+    // Each frame: "FRAME\n" (parameters are rare) and its samples.
+    let per_frame = format.frame_bytes() + 6;
+    Some(size.saturating_sub(header.len() as u64) / per_frame)
+}
+
+/// `ffmpeg`, `ffprobe` and what they can do, found when a video file needs them.
+struct Ffmpeg {
+    tools: Tools,
+    caps: Capabilities,
+}
+
+impl Ffmpeg {
+    fn find(a: &VideoArgs, why: &str) -> Result<Self> {
+        let tools = Tools::find(a.ffmpeg.as_deref(), why)?;
+        let caps = tools.capabilities()?;
+        Ok(Self { tools, caps })
+    }
+}
+
+/// Where frames come from.
+struct Opened {
+    source: Box<dyn FrameSource>,
+    /// The y4m header of a y4m or decoded input (the output repeats it).
+    header: Option<Vec<u8>>,
+    /// The frames' format (made from the first image for a folder).
+    format: VideoFormat,
+    /// Files that must not be overwritten.
+    protected: Vec<PathBuf>,
+    /// Frames to expect, when known.
+    expected: Option<u64>,
+    /// A container input: its path and probe.
+    container: Option<(PathBuf, Probe)>,
+}
+
+fn open_input(a: &VideoArgs, ffmpeg: &mut Option<Ffmpeg>) -> Result<Opened> {
     let max = a.model.max_pixels;
+    let y4m = |reader: Y4mReader<BufReader<Box<dyn Read + Send>>>,
+               protected: Vec<PathBuf>,
+               expected: Option<u64>| Opened {
+        header: Some(reader.header().to_vec()),
+        format: reader.format().clone(),
+        source: Box::new(reader),
+        protected,
+        expected,
+        container: None,
+    };
     if is_stdio(&a.input) {
-        let reader = Y4mReader::new(BufReader::with_capacity(1 << 20, std::io::stdin()), max)
+        let stdin: Box<dyn Read + Send> = Box::new(std::io::stdin());
+        let reader = Y4mReader::new(BufReader::with_capacity(1 << 20, stdin), max)
             .context("reading y4m from stdin")?;
-        let (header, format) = (reader.header().to_vec(), reader.format().clone());
-        return Ok(Input::Y4m(Box::new(reader), header, format));
+        return Ok(y4m(reader, Vec::new(), None));
     }
     if a.input.is_dir() {
         let paths = list_frames(&a.input)?;
         let reader = FrameFolderReader::new(paths, max)
             .with_context(|| format!("reading the first frame in {}", a.input.display()))?;
-        return Ok(Input::Frames(reader));
+        let (width, height) = reader.dimensions();
+        return Ok(Opened {
+            header: None,
+            format: VideoFormat {
+                width,
+                height,
+                chroma: match a.chroma {
+                    ChromaArg::C420 => Chroma::Yuv420,
+                    ChromaArg::C422 => Chroma::Yuv422,
+                    ChromaArg::C444 => Chroma::Yuv444,
+                    ChromaArg::Mono => Chroma::Mono,
+                },
+                full_range: false,
+                frame_rate: frame_rate_fraction(a.fps),
+                bit_depth: 8,
+            },
+            protected: reader.paths().to_vec(),
+            expected: Some(reader.paths().len() as u64),
+            source: Box::new(reader),
+            container: None,
+        });
     }
-    let file = File::open(&a.input).with_context(|| format!("opening {}", a.input.display()))?;
-    let reader = Y4mReader::new(BufReader::with_capacity(1 << 20, file), max)
-        .with_context(|| format!("reading {}", a.input.display()))?;
-    let (header, format) = (reader.header().to_vec(), reader.format().clone());
-    Ok(Input::Y4m(Box::new(reader), header, format))
+    if starts_as_y4m(&a.input)? {
+        let file =
+            File::open(&a.input).with_context(|| format!("opening {}", a.input.display()))?;
+        let file: Box<dyn Read + Send> = Box::new(file);
+        let reader = Y4mReader::new(BufReader::with_capacity(1 << 20, file), max)
+            .with_context(|| format!("reading {}", a.input.display()))?;
+        let expected = y4m_file_frames(&a.input, reader.header(), reader.format());
+        return Ok(y4m(reader, vec![a.input.clone()], expected));
+    }
+    // Anything else is a container for ffmpeg.
+    let ff = match ffmpeg {
+        Some(f) => f,
+        None => ffmpeg.insert(Ffmpeg::find(
+            a,
+            &format!("reading {} (not a y4m file)", a.input.display()),
+        )?),
+    };
+    let probe = ff.tools.probe(&a.input)?;
+    let target = y4m_target(probe.video.pix_fmt.as_deref());
+    if target.converts {
+        eprintln!(
+            "unshear video: note: {} is {}, processed as {} (the nearest layout unshear \
+             reads)",
+            a.input.display(),
+            probe.video.pix_fmt.as_deref().unwrap_or("?"),
+            target.pix_fmt
+        );
+    }
+    let args = decode_args(&a.input, &probe, &target, &ff.caps);
+    let decoder = Decoder::start(&ff.tools, &args, &a.input, max)?;
+    Ok(Opened {
+        header: Some(decoder.header().to_vec()),
+        format: decoder.format().clone(),
+        source: Box::new(decoder),
+        protected: vec![a.input.clone()],
+        expected: probe.expected_frames(),
+        container: Some((a.input.clone(), probe)),
+    })
 }
 
 /// A y4m writer for the input: its own header for a y4m input, a made one for frames.
@@ -218,11 +365,28 @@ pub fn video(a: VideoArgs) -> Result<()> {
         // shear-roll-yaw, whose roll and mouth terms add frame-to-frame noise).
         unshear.set_model(unshear::estimate::ShearModel::Equation5);
     }
-    let input = open_input(&a)?;
-    let fps = match &input {
-        Input::Y4m(_, _, f) => f.fps(),
-        Input::Frames(_) => a.fps,
+    // A container output needs ffmpeg: found (and the output checked) before any work.
+    let output = match a.output.as_deref() {
+        None => Output::None,
+        Some(o) if is_stdio(o) => Output::Stdout,
+        Some(o) if is_y4m_path(o) => Output::Y4mFile(o.to_path_buf()),
+        Some(o) if is_container_path(o) => Output::Container(o.to_path_buf()),
+        Some(o) => Output::Folder(o.to_path_buf()),
     };
+    let mut ffmpeg = None;
+    if let Output::Container(o) = &output {
+        ffmpeg = Some(Ffmpeg::find(&a, &format!("writing {}", o.display()))?);
+    }
+    let input = open_input(&a, &mut ffmpeg)?;
+    let Opened {
+        mut source,
+        header,
+        format,
+        protected,
+        expected,
+        container,
+    } = input;
+    let fps = format.fps();
     let options = ProcessOptions {
         tracker: TrackerParams {
             redetect_interval: a.redetect,
@@ -241,33 +405,6 @@ pub fn video(a: VideoArgs) -> Result<()> {
         network_budget: a.model.network_budget(Budget::VIDEO),
     };
     let mut processor = VideoProcessor::new(&unshear, options);
-    let (mut source, header, protected, made): (Box<dyn FrameSource>, _, _, _) = match input {
-        Input::Y4m(s, h, f) => {
-            let protected = (!is_stdio(&a.input))
-                .then(|| a.input.clone())
-                .into_iter()
-                .collect::<Vec<_>>();
-            (s, Some(h), protected, f)
-        }
-        Input::Frames(r) => {
-            let (width, height) = r.dimensions();
-            let made = VideoFormat {
-                width,
-                height,
-                chroma: match a.chroma {
-                    ChromaArg::C420 => Chroma::Yuv420,
-                    ChromaArg::C422 => Chroma::Yuv422,
-                    ChromaArg::C444 => Chroma::Yuv444,
-                    ChromaArg::Mono => Chroma::Mono,
-                },
-                full_range: false,
-                frame_rate: frame_rate_fraction(a.fps),
-                bit_depth: 8,
-            };
-            let protected = r.paths().to_vec();
-            (Box::new(r) as Box<dyn FrameSource>, None, protected, made)
-        }
-    };
     let write_options = WriteOptions {
         overwrite: a.force,
         protected: protected.clone(),
@@ -291,7 +428,8 @@ pub fn video(a: VideoArgs) -> Result<()> {
         }
     };
     let mut json_error: Option<std::io::Error> = None;
-    let mut progress = Progress::new();
+    let mut progress = Progress::new(expected);
+    let mut frames_with_faces = 0u64;
     let mut on_frame = |r: &FrameResult| {
         if let Some(out) = json_out.as_mut() {
             if json_error.is_none() {
@@ -300,14 +438,18 @@ pub fn video(a: VideoArgs) -> Result<()> {
                 }
             }
         }
+        if !r.faces.is_empty() {
+            frames_with_faces += 1;
+        }
         progress.frame();
     };
 
-    let stats: RunStats = match a.output.as_deref() {
-        None => run(source.as_mut(), None, &mut processor, &mut on_frame)?,
-        Some(o) if is_stdio(o) => {
+    let mut written = None;
+    let stats: RunStats = match &output {
+        Output::None => run(source.as_mut(), None, &mut processor, &mut on_frame)?,
+        Output::Stdout => {
             let w = BufWriter::with_capacity(1 << 20, std::io::stdout());
-            let mut sink = y4m_sink(w, header.as_deref(), &made)?;
+            let mut sink = y4m_sink(w, header.as_deref(), &format)?;
             run(
                 source.as_mut(),
                 Some(&mut sink),
@@ -315,10 +457,10 @@ pub fn video(a: VideoArgs) -> Result<()> {
                 &mut on_frame,
             )?
         }
-        Some(o) if is_y4m_path(o) => {
+        Output::Y4mFile(o) => {
             let mut stats = None;
             unshear::imageio::write_atomic(o, &write_options, |w| {
-                let mut sink = y4m_sink(w, header.as_deref(), &made)?;
+                let mut sink = y4m_sink(w, header.as_deref(), &format)?;
                 stats = Some(run(
                     source.as_mut(),
                     Some(&mut sink as &mut dyn FrameSink),
@@ -330,7 +472,7 @@ pub fn video(a: VideoArgs) -> Result<()> {
             .with_context(|| format!("writing {}", o.display()))?;
             stats.context("no run statistics")?
         }
-        Some(dir) => {
+        Output::Folder(dir) => {
             let mut sink = FrameFolderWriter::new(dir, &a.frame_format, write_options.clone())?;
             run(
                 source.as_mut(),
@@ -339,6 +481,26 @@ pub fn video(a: VideoArgs) -> Result<()> {
                 &mut on_frame,
             )
             .with_context(|| format!("writing frames into {}", dir.display()))?
+        }
+        Output::Container(o) => {
+            let ff = ffmpeg.as_ref().context("ffmpeg was not set up")?;
+            let settings = EncodeSettings {
+                codec: a.codec.clone(),
+                crf: a.crf,
+            };
+            let (stats, plan) = encode(
+                &a,
+                ff,
+                o,
+                &protected,
+                header.as_deref(),
+                &format,
+                container.as_ref(),
+                &settings,
+                |sink| run(source.as_mut(), Some(sink), &mut processor, &mut on_frame),
+            )?;
+            written = Some((o.clone(), plan));
+            stats
         }
     };
     progress.finish();
@@ -354,15 +516,143 @@ pub fn video(a: VideoArgs) -> Result<()> {
     }
     let fps = stats.frames as f64 / stats.seconds.max(1e-9);
     eprintln!(
-        "unshear video: {} frames in {:.2} s ({fps:.1} fps); {} full detections, {} tracked \
-         searches, {} estimates rejected by the filter",
+        "unshear video: {} frames in {:.2} s ({fps:.1} fps); faces in {frames_with_faces} \
+         frames; {} full detections, {} tracked searches, {} estimates rejected by the filter",
         stats.frames,
         stats.seconds,
         stats.tracker.full_detections,
         stats.tracker.local_searches,
         stats.rejected
     );
+    if let Some((o, plan)) = &written {
+        eprintln!("unshear video: wrote {}: {}", o.display(), describe(plan));
+    }
+    if let Some((_, probe)) = &container {
+        let r = probe.video.rotation;
+        if frames_with_faces == 0 && r != 0 {
+            eprintln!(
+                "unshear video: note: no face was found; the frames are stored rotated by {r} \
+                 degrees for display (e.g. a phone held upright) and are analysed as stored, \
+                 where rolling shutter shears them, so faces upright on screen lie on their \
+                 side or upside down there, where the detector does not find them"
+            );
+        }
+    }
     Ok(())
+}
+
+/// Where frames go.
+enum Output {
+    None,
+    Stdout,
+    Y4mFile(PathBuf),
+    Folder(PathBuf),
+    Container(PathBuf),
+}
+
+/// Encodes into `out` through a temporary file beside it: `process` runs the clip into the
+/// encoder; the file is renamed to `out` only when everything succeeded (after the remux pass
+/// that sets the rotation, for an older ffmpeg).
+#[allow(clippy::too_many_arguments)]
+fn encode(
+    a: &VideoArgs,
+    ff: &Ffmpeg,
+    out: &Path,
+    protected: &[PathBuf],
+    header: Option<&[u8]>,
+    format: &VideoFormat,
+    container: Option<&(PathBuf, Probe)>,
+    settings: &EncodeSettings,
+    process: impl FnOnce(&mut dyn FrameSink) -> unshear::Result<RunStats>,
+) -> Result<(RunStats, EncodePlan)> {
+    if protected.iter().any(|p| same_path(p, out)) {
+        bail!("refusing to write {}: it is an input file", out.display());
+    }
+    if out.exists() && !a.force {
+        bail!(
+            "refusing to write {}: it exists; use --force to replace it",
+            out.display()
+        );
+    }
+    let dir = match out.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let ext = out
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("mp4")
+        .to_string();
+    let tmp = TempOutput::new(dir, &ext)?;
+    let source = container.map(|(p, probe)| (p.as_path(), probe));
+    let plan = EncodePlan::new(tmp.path(), format, source, settings, &ff.caps)?;
+    // The y4m header the encoder reads: the input's own, or one made for image frames.
+    let header = match header {
+        Some(h) => h.to_vec(),
+        None => Y4mWriter::new(Vec::new(), format)?.finish()?,
+    };
+    let mut encoder = Encoder::start(&ff.tools, &plan.args, &header, out)?;
+    let stats = process(&mut encoder).with_context(|| format!("writing {}", out.display()))?;
+    drop(encoder);
+    let finished = match plan.remux_rotation {
+        Some(rotation) => {
+            let rotated = TempOutput::new(dir, &ext)?;
+            let args = EncodePlan::remux_args(tmp.path(), rotated.path(), rotation);
+            ff.tools
+                .run(&args, &format!("setting the rotation of {}", out.display()))?;
+            rotated
+        }
+        None => tmp,
+    };
+    if interrupt::requested() {
+        bail!("interrupted");
+    }
+    finished.persist(out, a.force)?;
+    Ok((stats, plan))
+}
+
+/// What an encoding did, for the summary.
+fn describe(plan: &EncodePlan) -> String {
+    let mut parts = vec![match (&plan.codec, plan.crf) {
+        (Some(c), Some(q)) => format!("video {c} crf {q}"),
+        (Some(c), None) => format!("video {c}"),
+        (None, _) => "video in ffmpeg's default codec".to_string(),
+    }];
+    let count = |v: &[(unshear::video::ffmpeg::Stream, StreamAction)], kind: &str| {
+        let copied = v.iter().filter(|(_, x)| *x == StreamAction::Copy).count();
+        let converted: Vec<String> = v
+            .iter()
+            .filter_map(|(s, x)| match x {
+                StreamAction::Convert(e) => Some(format!("{} to {e}", s.codec)),
+                _ => None,
+            })
+            .collect();
+        let dropped = v
+            .iter()
+            .filter(|(_, x)| matches!(x, StreamAction::Drop(_)))
+            .count();
+        let mut p = Vec::new();
+        if copied > 0 {
+            p.push(format!("{copied} {kind} copied"));
+        }
+        if !converted.is_empty() {
+            p.push(format!("{kind} converted ({})", converted.join(", ")));
+        }
+        if dropped > 0 {
+            p.push(format!(
+                "{dropped} {kind} left out (the container cannot hold them)"
+            ));
+        }
+        p
+    };
+    parts.extend(count(&plan.audio, "audio"));
+    parts.extend(count(&plan.subtitles, "subtitles"));
+    if let Some(r) = plan.rotation_lost {
+        parts.push(format!(
+            "rotation {r} not kept (the container has no rotation flag)"
+        ));
+    }
+    parts.join("; ")
 }
 
 /// `fps` as a y4m rate fraction (exact for integers, 1/1000 precision otherwise).
@@ -381,37 +671,45 @@ fn same_path(a: &Path, b: &Path) -> bool {
     }
 }
 
-/// `frames, fps` on stderr, redrawn at most twice a second, only when stderr is a terminal.
+/// A progress bar on stderr, only when stderr is a terminal: frames (of the expected count when
+/// known), frames per second and time left.
 struct Progress {
-    enabled: bool,
-    start: Instant,
-    last: Instant,
-    frames: u64,
+    bar: ProgressBar,
 }
 
 impl Progress {
-    fn new() -> Self {
-        let now = Instant::now();
-        Self {
-            enabled: std::io::stderr().is_terminal(),
-            start: now,
-            last: now,
-            frames: 0,
+    fn new(expected: Option<u64>) -> Self {
+        if !std::io::stderr().is_terminal() {
+            return Self {
+                bar: ProgressBar::hidden(),
+            };
         }
+        let bar = ProgressBar::with_draw_target(expected, ProgressDrawTarget::stderr_with_hz(4));
+        let template = if expected.is_some() {
+            "unshear video {bar:30} {pos}/{len} frames, {fps}, {eta} left"
+        } else {
+            "unshear video {spinner} {pos} frames, {fps}"
+        };
+        if let Ok(style) = ProgressStyle::with_template(template) {
+            bar.set_style(style.with_key(
+                "fps",
+                |state: &ProgressState, w: &mut dyn std::fmt::Write| {
+                    let _ = write!(w, "{:.1} fps", state.per_sec());
+                },
+            ));
+        }
+        Self { bar }
     }
 
     fn frame(&mut self) {
-        self.frames += 1;
-        if self.enabled && self.last.elapsed().as_secs_f64() >= 0.5 {
-            self.last = Instant::now();
-            let fps = self.frames as f64 / self.start.elapsed().as_secs_f64().max(1e-9);
-            eprint!("\runshear video: frame {} ({fps:.1} fps)   ", self.frames);
+        // The expected count may be an estimate: grow the bar rather than overflow it.
+        if self.bar.length().is_some_and(|l| self.bar.position() >= l) {
+            self.bar.inc_length(1);
         }
+        self.bar.inc(1);
     }
 
     fn finish(&self) {
-        if self.enabled && self.frames > 0 {
-            eprint!("\r{:60}\r", "");
-        }
+        self.bar.finish_and_clear();
     }
 }
