@@ -338,8 +338,8 @@ impl ChildProcess {
         self.done = true;
     }
 
-    /// The end of the child's error output (after it ended).
-    pub fn stderr_tail(&mut self) -> String {
+    /// The child's whole error output (after it ended).
+    pub fn stderr_text(&mut self) -> &str {
         if self.stderr_text.is_none() {
             let text = self
                 .stderr
@@ -348,7 +348,12 @@ impl ChildProcess {
                 .unwrap_or_default();
             self.stderr_text = Some(text);
         }
-        tail(self.stderr_text.as_deref().unwrap_or(""))
+        self.stderr_text.as_deref().unwrap_or("")
+    }
+
+    /// The end of the child's error output (after it ended).
+    pub fn stderr_tail(&mut self) -> String {
+        tail(self.stderr_text())
     }
 
     /// Waits and turns a failure into an error naming `what` and ffmpeg's message.
@@ -370,16 +375,30 @@ impl Drop for ChildProcess {
 }
 
 /// Frames decoded by an `ffmpeg` child from a container file.
+///
+/// `-xerror` makes `ffmpeg` fail at a corrupt packet, but a file cut between packets decodes
+/// to its end with only "partial file" messages and a success: a decoder that printed errors
+/// and gave fewer frames than the container's index lists (or said "partial file") is taken
+/// as a truncated input. Fewer frames without a message are normal (an edit list that drops
+/// some); messages with every frame decoded are passed on as a warning.
 pub struct Decoder {
     reader: Y4mReader<BufReader<ChildStdout>>,
     child: ChildProcess,
     frames: u64,
+    indexed: Option<u64>,
 }
 
 impl Decoder {
     /// Starts `ffmpeg` with `args` (from [`unshear::video::ffmpeg::decode_args`]) and reads the
     /// y4m header it writes.
-    pub fn start(tools: &Tools, args: &[OsString], input: &Path, max_pixels: u64) -> Result<Self> {
+    /// `indexed`: the frame count of the container's index, when it has one.
+    pub fn start(
+        tools: &Tools,
+        args: &[OsString],
+        input: &Path,
+        max_pixels: u64,
+        indexed: Option<u64>,
+    ) -> Result<Self> {
         let what = format!("decoding {}", input.display());
         let (mut child, _, stdout) =
             spawn_with(&tools.ffmpeg, args, Stdio::null(), Stdio::piped(), &what)?;
@@ -389,6 +408,7 @@ impl Decoder {
                 reader,
                 child,
                 frames: 0,
+                indexed,
             }),
             Err(e) => {
                 // Most likely ffmpeg could not open or decode the input: its message says why.
@@ -417,11 +437,31 @@ impl FrameSource for Decoder {
                 self.frames += 1;
                 Ok(Some(f))
             }
-            Ok(None) => self
-                .child
-                .finish()
-                .map(|()| None)
-                .map_err(|e| video_err(format!("{e:#} (after {} frames)", self.frames))),
+            Ok(None) => {
+                self.child
+                    .finish()
+                    .map_err(|e| video_err(format!("{e:#} (after {} frames)", self.frames)))?;
+                let messages = self.child.stderr_text().trim().to_string();
+                if messages.is_empty() {
+                    return Ok(None);
+                }
+                let short = self.indexed.is_some_and(|n| self.frames < n);
+                if short || messages.contains("partial file") {
+                    let of = self.indexed.map(|n| format!(" of {n}")).unwrap_or_default();
+                    let tail = self.child.stderr_tail();
+                    return Err(video_err(format!(
+                        "{}: the input looks truncated or corrupt: {} frames{of} decoded; \
+                         ffmpeg: {tail}",
+                        self.child.what, self.frames
+                    )));
+                }
+                let tail = self.child.stderr_tail();
+                eprintln!(
+                    "unshear video: warning: ffmpeg reported while {}: {tail}",
+                    self.child.what
+                );
+                Ok(None)
+            }
             Err(e) => {
                 let _ = self.child.wait();
                 let message = self.child.stderr_tail();

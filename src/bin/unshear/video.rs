@@ -314,7 +314,7 @@ fn open_input(a: &VideoArgs, ffmpeg: &mut Option<Ffmpeg>) -> Result<Opened> {
         );
     }
     let args = decode_args(&a.input, &probe, &target, &ff.caps);
-    let decoder = Decoder::start(&ff.tools, &args, &a.input, max)?;
+    let decoder = Decoder::start(&ff.tools, &args, &a.input, max, probe.video.frames)?;
     Ok(Opened {
         header: Some(decoder.header().to_vec()),
         format: decoder.format().clone(),
