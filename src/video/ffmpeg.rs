@@ -590,6 +590,10 @@ pub enum StreamAction {
 }
 
 fn audio_action(container: Container, codec: &str) -> StreamAction {
+    if codec.is_empty() || codec == "none" {
+        // A codec FFmpeg does not know cannot be muxed, copied or converted.
+        return StreamAction::Drop("ffmpeg does not know its codec".into());
+    }
     let copy = match container {
         Container::Mp4 => matches!(
             codec,
@@ -723,13 +727,16 @@ impl EncodePlan {
         if let Some(p) = probe {
             for s in &p.audio {
                 let action = audio_action(container, &s.codec);
-                push(&mut args, &["-map", &format!("1:{}", s.index)]);
-                // Every container here takes AAC or Opus: audio is never dropped.
                 let codec = match &action {
-                    StreamAction::Convert(e) => e.as_str(),
-                    _ => "copy",
+                    StreamAction::Copy => "copy".to_string(),
+                    StreamAction::Convert(e) => e.clone(),
+                    StreamAction::Drop(_) => {
+                        audio.push((s.clone(), action));
+                        continue;
+                    }
                 };
-                push(&mut args, &[&format!("-c:a:{na}"), codec]);
+                push(&mut args, &["-map", &format!("1:{}", s.index)]);
+                push(&mut args, &[&format!("-c:a:{na}"), &codec]);
                 na += 1;
                 audio.push((s.clone(), action));
             }
@@ -853,6 +860,7 @@ mod tests {
              "side_data_list": [{"side_data_type": "Display Matrix", "rotation": -90}]},
             {"index": 1, "codec_type": "audio", "codec_name": "aac"},
             {"index": 2, "codec_type": "data", "codec_name": "none"},
+            {"index": 6, "codec_type": "audio"},
             {"index": 3, "codec_type": "subtitle", "codec_name": "subrip"},
             {"index": 4, "codec_type": "subtitle", "codec_name": "hdmv_pgs_subtitle"},
             {"index": 5, "codec_type": "video", "codec_name": "mjpeg", "width": 64,
@@ -910,10 +918,16 @@ mod tests {
         assert_eq!(p.video.color.transfer.as_deref(), Some("arib-std-b67"));
         assert_eq!(
             p.audio,
-            [Stream {
-                index: 1,
-                codec: "aac".into()
-            }]
+            [
+                Stream {
+                    index: 1,
+                    codec: "aac".into()
+                },
+                Stream {
+                    index: 6,
+                    codec: String::new()
+                }
+            ]
         );
         assert_eq!(p.subtitles.len(), 2);
         assert!(Probe::parse(b"{\"streams\": []}").is_err());

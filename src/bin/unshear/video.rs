@@ -529,6 +529,12 @@ pub fn video(a: VideoArgs) -> Result<()> {
     }
     if let Some((_, probe)) = &container {
         let r = probe.video.rotation;
+        if r != 0 && !matches!(output, Output::Container(_) | Output::None) {
+            eprintln!(
+                "unshear video: note: the input is flagged for display rotated by {r} degrees; \
+                 y4m and frame folders carry no such flag, so their frames are as stored"
+            );
+        }
         if frames_with_faces == 0 && r != 0 {
             eprintln!(
                 "unshear video: note: no face was found; the frames are stored rotated by {r} \
@@ -627,10 +633,13 @@ fn describe(plan: &EncodePlan) -> String {
                 _ => None,
             })
             .collect();
-        let dropped = v
+        let dropped: Vec<String> = v
             .iter()
-            .filter(|(_, x)| matches!(x, StreamAction::Drop(_)))
-            .count();
+            .filter_map(|(s, x)| match x {
+                StreamAction::Drop(why) => Some(format!("{} stream {}: {why}", s.codec, s.index)),
+                _ => None,
+            })
+            .collect();
         let mut p = Vec::new();
         if copied > 0 {
             p.push(format!("{copied} {kind} copied"));
@@ -638,10 +647,8 @@ fn describe(plan: &EncodePlan) -> String {
         if !converted.is_empty() {
             p.push(format!("{kind} converted ({})", converted.join(", ")));
         }
-        if dropped > 0 {
-            p.push(format!(
-                "{dropped} {kind} left out (the container cannot hold them)"
-            ));
+        if !dropped.is_empty() {
+            p.push(format!("{kind} left out ({})", dropped.join(", ")));
         }
         p
     };
