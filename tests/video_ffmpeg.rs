@@ -149,50 +149,60 @@ fn ffmpeg(args: &[&str], stdin: Option<&[u8]>) {
 }
 
 /// A short H.264 + AAC MP4 of the sheared face, flagged for display rotated by 90 degrees
-/// (the flag set by a stream copy, which every ffmpeg version honours).
+/// (by `-display_rotation` where this ffmpeg has it, 6.1 and later, else by the `rotate` tag
+/// of a stream copy, which only older versions honour).
 fn make_mp4(dir: &Path) -> PathBuf {
     let y4m = dir.join("clip.y4m");
     std::fs::write(&y4m, y4m8(&frames())).expect("write y4m");
+    let help = Command::new("ffmpeg")
+        .args(["-hide_banner", "-h", "long"])
+        .output()
+        .expect("ffmpeg -h");
+    let display_rotation = String::from_utf8_lossy(&help.stdout).contains("-display_rotation");
     let plain = dir.join("plain.mp4");
-    ffmpeg(
-        &[
-            "-i",
-            path(&y4m),
-            "-f",
-            "lavfi",
-            "-i",
-            "sine=frequency=440:sample_rate=48000:duration=0.8",
-            "-map",
-            "0:v",
-            "-map",
-            "1:a",
-            "-c:v",
-            "libx264",
-            "-preset",
-            "veryfast",
-            "-crf",
-            "12",
-            "-c:a",
-            "aac",
-            path(&plain),
-        ],
-        None,
-    );
     let clip = dir.join("clip.mp4");
-    ffmpeg(
-        &[
-            "-i",
-            path(&plain),
-            "-map",
-            "0",
-            "-c",
-            "copy",
-            "-metadata:s:v:0",
-            "rotate=90",
-            path(&clip),
-        ],
-        None,
-    );
+    let mut args = vec![];
+    if display_rotation {
+        args.extend(["-noautorotate", "-display_rotation", "90"]);
+    }
+    args.extend([
+        "-i",
+        path(&y4m),
+        "-f",
+        "lavfi",
+        "-i",
+        "sine=frequency=440:sample_rate=48000:duration=0.8",
+        "-map",
+        "0:v",
+        "-map",
+        "1:a",
+        "-c:v",
+        "libx264",
+        "-preset",
+        "veryfast",
+        "-crf",
+        "12",
+        "-c:a",
+        "aac",
+        path(if display_rotation { &clip } else { &plain }),
+    ]);
+    ffmpeg(&args, None);
+    if !display_rotation {
+        ffmpeg(
+            &[
+                "-i",
+                path(&plain),
+                "-map",
+                "0",
+                "-c",
+                "copy",
+                "-metadata:s:v:0",
+                "rotate=90",
+                path(&clip),
+            ],
+            None,
+        );
+    }
     clip
 }
 
