@@ -84,11 +84,18 @@ impl Tools {
         Ok(Self { ffmpeg, ffprobe })
     }
 
-    /// What this `ffmpeg` can do (two quick runs of it).
+    /// What this `ffmpeg` can do (two quick runs of it, side by side: each start of a
+    /// distribution's ffmpeg loads a few hundred shared libraries).
     pub fn capabilities(&self) -> Result<Capabilities> {
-        let help = self.output(&self.ffmpeg, ["-hide_banner", "-h", "long"])?;
-        let encoders = self.output(&self.ffmpeg, ["-hide_banner", "-encoders"])?;
-        Ok(Capabilities::parse(&help, &encoders))
+        let (help, encoders) = std::thread::scope(|scope| {
+            let help = scope.spawn(|| self.output(&self.ffmpeg, ["-hide_banner", "-h", "long"]));
+            let encoders = self.output(&self.ffmpeg, ["-hide_banner", "-encoders"]);
+            let help = help
+                .join()
+                .unwrap_or_else(|_| Err(anyhow::anyhow!("ffmpeg -h panicked")));
+            (help, encoders)
+        });
+        Ok(Capabilities::parse(&help?, &encoders?))
     }
 
     /// The probe of `input`.

@@ -219,10 +219,20 @@ struct Ffmpeg {
 }
 
 impl Ffmpeg {
-    fn find(a: &VideoArgs, why: &str) -> Result<Self> {
+    /// Finds the programs (`why`: what needs them, for the error without them), asks what
+    /// `ffmpeg` can do and, for a video-file input, probes it; the runs side by side.
+    fn prepare(a: &VideoArgs, why: &str, probe_input: bool) -> Result<(Self, Option<Probe>)> {
         let tools = Tools::find(a.ffmpeg.as_deref(), why)?;
-        let caps = tools.capabilities()?;
-        Ok(Self { tools, caps })
+        let (caps, probe) = std::thread::scope(|scope| {
+            let probe = probe_input.then(|| scope.spawn(|| tools.probe(&a.input)));
+            let caps = tools.capabilities();
+            let probe = probe.map(|h| {
+                h.join()
+                    .unwrap_or_else(|_| Err(anyhow::anyhow!("ffprobe panicked")))
+            });
+            (caps, probe)
+        });
+        Ok((Self { tools, caps: caps? }, probe.transpose()?))
     }
 }
 
@@ -241,7 +251,8 @@ struct Opened {
     container: Option<(PathBuf, Probe)>,
 }
 
-fn open_input(a: &VideoArgs, ffmpeg: &mut Option<Ffmpeg>) -> Result<Opened> {
+/// The input's frames; `ffmpeg` and the `probe` of a video file from [`Ffmpeg::prepare`].
+fn open_input(a: &VideoArgs, ffmpeg: Option<&Ffmpeg>, probe: Option<Probe>) -> Result<Opened> {
     let max = a.model.max_pixels;
     let y4m = |reader: Y4mReader<BufReader<Box<dyn Read + Send>>>,
                protected: Vec<PathBuf>,
@@ -294,15 +305,10 @@ fn open_input(a: &VideoArgs, ffmpeg: &mut Option<Ffmpeg>) -> Result<Opened> {
         let expected = y4m_file_frames(&a.input, reader.header(), reader.format());
         return Ok(y4m(reader, vec![a.input.clone()], expected));
     }
-    // Anything else is a container for ffmpeg.
-    let ff = match ffmpeg {
-        Some(f) => f,
-        None => ffmpeg.insert(Ffmpeg::find(
-            a,
-            &format!("reading {} (not a y4m file)", a.input.display()),
-        )?),
+    // Anything else is a video file for ffmpeg.
+    let (Some(ff), Some(probe)) = (ffmpeg, probe) else {
+        bail!("{}: ffmpeg was not set up for it", a.input.display());
     };
-    let probe = ff.tools.probe(&a.input)?;
     let target = y4m_target(probe.video.pix_fmt.as_deref());
     if target.converts {
         eprintln!(
@@ -358,14 +364,6 @@ pub fn video(a: VideoArgs) -> Result<()> {
             "--smoothing-lag must be at most {MAX_SMOOTHING_LAG} frames (frames are held in memory)"
         ));
     }
-    let mut unshear = load_models(&a.model)?;
-    if a.model.shear_model.is_none() {
-        // Per frame, equation 5 is the steadiest of the models (synthetic clip in
-        // tests/video.rs: raw rms error 0.015, against 0.025 with shear-roll and 0.048 with
-        // shear-roll-yaw, whose roll and mouth terms add frame-to-frame noise).
-        unshear.set_model(unshear::estimate::ShearModel::Equation5);
-    }
-    // A container output needs ffmpeg: found (and the output checked) before any work.
     let output = match a.output.as_deref() {
         None => Output::None,
         Some(o) if is_stdio(o) => Output::Stdout,
@@ -373,11 +371,39 @@ pub fn video(a: VideoArgs) -> Result<()> {
         Some(o) if is_container_path(o) => Output::Container(o.to_path_buf()),
         Some(o) => Output::Folder(o.to_path_buf()),
     };
-    let mut ffmpeg = None;
-    if let Output::Container(o) = &output {
-        ffmpeg = Some(Ffmpeg::find(&a, &format!("writing {}", o.display()))?);
+    // A video file in or out needs ffmpeg: found, asked what it can do and the input probed
+    // while the models load (each start of ffmpeg or ffprobe takes a good part of a second on
+    // a busy machine), and before any frame is processed.
+    let container_in = !is_stdio(&a.input) && !a.input.is_dir() && !starts_as_y4m(&a.input)?;
+    let why = match &output {
+        _ if container_in => Some(format!("reading {} (not a y4m file)", a.input.display())),
+        Output::Container(o) => Some(format!("writing {}", o.display())),
+        _ => None,
+    };
+    let (models, prepared) = std::thread::scope(|scope| {
+        let prepared = why.map(|why| {
+            let a = &a;
+            scope.spawn(move || Ffmpeg::prepare(a, &why, container_in))
+        });
+        let models = load_models(&a.model);
+        let prepared = prepared.map(|h| {
+            h.join()
+                .unwrap_or_else(|_| Err(anyhow::anyhow!("preparing ffmpeg panicked")))
+        });
+        (models, prepared)
+    });
+    let mut unshear = models?;
+    let (ffmpeg, probe) = match prepared.transpose()? {
+        Some((f, p)) => (Some(f), p),
+        None => (None, None),
+    };
+    if a.model.shear_model.is_none() {
+        // Per frame, equation 5 is the steadiest of the models (synthetic clip in
+        // tests/video.rs: raw rms error 0.015, against 0.025 with shear-roll and 0.048 with
+        // shear-roll-yaw, whose roll and mouth terms add frame-to-frame noise).
+        unshear.set_model(unshear::estimate::ShearModel::Equation5);
     }
-    let input = open_input(&a, &mut ffmpeg)?;
+    let input = open_input(&a, ffmpeg.as_ref(), probe)?;
     let Opened {
         mut source,
         header,
