@@ -24,7 +24,6 @@ use std::path::Path;
 
 use serde::Deserialize;
 
-use super::VideoFormat;
 use crate::{Error, Result};
 
 fn video_err(msg: impl Into<String>) -> Error {
@@ -664,14 +663,14 @@ pub struct EncodePlan {
 
 impl EncodePlan {
     /// The plan for writing `output` (its extension decides the container) from a y4m stream
-    /// of `format` on stdin and, when the frames came from a container, that `source` file
+    /// of `bit_depth` on stdin and, when the frames came from a container, that `source` file
     /// and its probe.
     ///
     /// # Errors
     /// [`Error::InvalidArgument`] for a `--crf` that is not a finite number `>= 0`.
     pub fn new(
         output: &Path,
-        format: &VideoFormat,
+        bit_depth: u32,
         source: Option<(&Path, &Probe)>,
         settings: &EncodeSettings,
         caps: &Capabilities,
@@ -689,7 +688,7 @@ impl EncodePlan {
             default_codec(
                 container,
                 probe.map(|p| p.video.codec.as_str()),
-                format.bit_depth,
+                bit_depth,
                 caps,
             )
         });
@@ -847,7 +846,6 @@ pub fn version_line(output: &str) -> &str {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::video::Chroma;
 
     const PROBE: &str = r#"{
         "streams": [
@@ -890,17 +888,6 @@ mod tests {
         args.iter()
             .map(|a| a.to_string_lossy().into_owned())
             .collect()
-    }
-
-    fn format10() -> VideoFormat {
-        VideoFormat {
-            width: 1920,
-            height: 1080,
-            chroma: Chroma::Yuv420,
-            full_range: false,
-            frame_rate: (30000, 1001),
-            bit_depth: 10,
-        }
     }
 
     #[test]
@@ -1012,7 +999,7 @@ mod tests {
         let src = Path::new("in.mov");
         let plan = EncodePlan::new(
             Path::new("out.mp4"),
-            &format10(),
+            10,
             Some((src, &p)),
             &EncodeSettings::default(),
             &caps(true),
@@ -1044,7 +1031,7 @@ mod tests {
         // An older ffmpeg: no rotation in the encoding pass, a remux for it.
         let old = EncodePlan::new(
             Path::new("out.mp4"),
-            &format10(),
+            10,
             Some((src, &p)),
             &EncodeSettings {
                 codec: Some("libx264".into()),
@@ -1069,7 +1056,7 @@ mod tests {
         // WebM: Opus audio, no rotation, WebVTT subtitles.
         let webm = EncodePlan::new(
             Path::new("out.webm"),
-            &format10(),
+            10,
             Some((src, &p)),
             &EncodeSettings::default(),
             &caps(true),
@@ -1087,7 +1074,7 @@ mod tests {
         // A y4m source: no second input.
         let bare = EncodePlan::new(
             Path::new("out.mkv"),
-            &format10(),
+            10,
             None,
             &EncodeSettings::default(),
             &caps(true),
@@ -1097,7 +1084,7 @@ mod tests {
         assert_eq!(a.matches("-i ").count(), 1, "{a}");
         assert!(EncodePlan::new(
             Path::new("o.mp4"),
-            &format10(),
+            10,
             None,
             &EncodeSettings {
                 codec: None,

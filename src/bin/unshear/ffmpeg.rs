@@ -395,23 +395,42 @@ pub struct Decoder {
     indexed: Option<u64>,
 }
 
-impl Decoder {
-    /// Starts `ffmpeg` with `args` (from [`unshear::video::ffmpeg::decode_args`]) and reads the
-    /// y4m header it writes.
+/// A decoding `ffmpeg` started and not yet read from (see [`Decoder`]).
+pub struct PendingDecoder {
+    child: ChildProcess,
+    stdout: ChildStdout,
+    indexed: Option<u64>,
+}
+
+impl PendingDecoder {
+    /// Starts `ffmpeg` with `args` (from [`unshear::video::ffmpeg::decode_args`]) on `input`;
     /// `indexed`: the frame count of the container's index, when it has one.
-    pub fn start(
+    pub fn spawn(
         tools: &Tools,
         args: &[OsString],
         input: &Path,
-        max_pixels: u64,
         indexed: Option<u64>,
     ) -> Result<Self> {
         let what = format!("decoding {}", input.display());
-        let (mut child, _, stdout) =
+        let (child, _, stdout) =
             spawn_with(&tools.ffmpeg, args, Stdio::null(), Stdio::piped(), &what)?;
         let stdout = stdout.context("ffmpeg's output pipe")?;
+        Ok(Self {
+            child,
+            stdout,
+            indexed,
+        })
+    }
+
+    /// Reads the y4m header the decoder writes.
+    pub fn open(self, max_pixels: u64) -> Result<Decoder> {
+        let Self {
+            mut child,
+            stdout,
+            indexed,
+        } = self;
         match Y4mReader::new(BufReader::with_capacity(1 << 20, stdout), max_pixels) {
-            Ok(reader) => Ok(Self {
+            Ok(reader) => Ok(Decoder {
                 reader,
                 child,
                 frames: 0,
@@ -420,11 +439,14 @@ impl Decoder {
             Err(e) => {
                 // Most likely ffmpeg could not open or decode the input: its message says why.
                 let _ = child.wait();
-                bail!("{what}: {} ({e})", child.stderr_tail())
+                let message = child.stderr_tail();
+                bail!("{}: {message} ({e})", child.what)
             }
         }
     }
+}
 
+impl Decoder {
     /// The y4m header line the decoder wrote.
     pub fn header(&self) -> &[u8] {
         self.reader.header()
@@ -487,25 +509,38 @@ pub struct Encoder {
     child: ChildProcess,
 }
 
-impl Encoder {
-    /// Starts `ffmpeg` with `args` (from [`unshear::video::ffmpeg::EncodePlan`]) and writes the
-    /// y4m `header` into it.
-    pub fn start(tools: &Tools, args: &[OsString], header: &[u8], output: &Path) -> Result<Self> {
+/// An encoding `ffmpeg` started and not yet written to (see [`Encoder`]).
+pub struct PendingEncoder {
+    child: ChildProcess,
+    stdin: ChildStdin,
+}
+
+impl PendingEncoder {
+    /// Starts `ffmpeg` with `args` (from [`unshear::video::ffmpeg::EncodePlan`]) writing
+    /// `output` (named in messages).
+    pub fn spawn(tools: &Tools, args: &[OsString], output: &Path) -> Result<Self> {
         let what = format!("encoding {}", output.display());
         let (child, stdin, _) =
             spawn_with(&tools.ffmpeg, args, Stdio::piped(), Stdio::null(), &what)?;
         let stdin = stdin.context("ffmpeg's input pipe")?;
-        let mut encoder = Self {
+        Ok(Self { child, stdin })
+    }
+
+    /// Writes the y4m `header` into it.
+    pub fn begin(self, header: &[u8]) -> Result<Encoder> {
+        let mut encoder = Encoder {
             writer: None,
-            child,
+            child: self.child,
         };
-        match Y4mWriter::with_header(BufWriter::with_capacity(1 << 20, stdin), header) {
+        match Y4mWriter::with_header(BufWriter::with_capacity(1 << 20, self.stdin), header) {
             Ok(w) => encoder.writer = Some(w),
             Err(e) => return Err(encoder.failure(e).into()),
         }
         Ok(encoder)
     }
+}
 
+impl Encoder {
     /// A write error, explained by ffmpeg's own message when it has ended.
     fn failure(&mut self, e: unshear::Error) -> unshear::Error {
         // A broken pipe means ffmpeg stopped reading: it has ended or is about to.

@@ -19,7 +19,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressState, ProgressStyle};
 use serde::Serialize;
 
 use crate::args::{InterpArg, ModelArgs};
-use crate::ffmpeg::{Decoder, Encoder, TempOutput, Tools};
+use crate::ffmpeg::{PendingDecoder, PendingEncoder, TempOutput, Tools};
 use crate::report::{face, r4, JsonFace};
 use crate::{interrupt, load_models, usage_error};
 use unshear::imageio::WriteOptions;
@@ -218,13 +218,28 @@ struct Ffmpeg {
     caps: Capabilities,
 }
 
+/// What the preparation hands back: ffmpeg and what it can do; for a video-file input, its
+/// probe and its decoder, already started; for a video-file output, its encoder, already
+/// started when its bit depth is known by then (a video-file input).
+struct Prepared {
+    ff: Ffmpeg,
+    input: Option<(Probe, PendingDecoder)>,
+    job: Option<EncodeJob>,
+}
+
 impl Ffmpeg {
     /// Finds the programs (`why`: what needs them, for the error without them), asks what
-    /// `ffmpeg` can do and, for a video-file input, probes it; the runs side by side.
-    fn prepare(a: &VideoArgs, why: &str, probe_input: bool) -> Result<(Self, Option<Probe>)> {
+    /// `ffmpeg` can do and probes a video-file input (side by side), then starts its decoder
+    /// and the encoder of a video-file output `out`, as the shell starts both ends of a pipe.
+    fn prepare(
+        a: &VideoArgs,
+        why: &str,
+        container_in: bool,
+        out: Option<&Path>,
+    ) -> Result<Prepared> {
         let tools = Tools::find(a.ffmpeg.as_deref(), why)?;
         let (caps, probe) = std::thread::scope(|scope| {
-            let probe = probe_input.then(|| scope.spawn(|| tools.probe(&a.input)));
+            let probe = container_in.then(|| scope.spawn(|| tools.probe(&a.input)));
             let caps = tools.capabilities();
             let probe = probe.map(|h| {
                 h.join()
@@ -232,7 +247,42 @@ impl Ffmpeg {
             });
             (caps, probe)
         });
-        Ok((Self { tools, caps: caps? }, probe.transpose()?))
+        let ff = Self { tools, caps: caps? };
+        let Some(probe) = probe.transpose()? else {
+            return Ok(Prepared {
+                ff,
+                input: None,
+                job: None,
+            });
+        };
+        let target = y4m_target(probe.video.pix_fmt.as_deref());
+        if target.converts {
+            eprintln!(
+                "unshear video: note: {} is {}, processed as {} (the nearest layout unshear \
+                 reads)",
+                a.input.display(),
+                probe.video.pix_fmt.as_deref().unwrap_or("?"),
+                target.pix_fmt
+            );
+        }
+        let args = decode_args(&a.input, &probe, &target, &ff.caps);
+        let decoder = PendingDecoder::spawn(&ff.tools, &args, &a.input, probe.video.frames)?;
+        let job = match out {
+            Some(o) => Some(EncodeJob::start(
+                a,
+                &ff,
+                o,
+                std::slice::from_ref(&a.input),
+                target.bit_depth,
+                Some((&a.input, &probe)),
+            )?),
+            None => None,
+        };
+        Ok(Prepared {
+            ff,
+            input: Some((probe, decoder)),
+            job,
+        })
     }
 }
 
@@ -251,8 +301,8 @@ struct Opened {
     container: Option<(PathBuf, Probe)>,
 }
 
-/// The input's frames; `ffmpeg` and the `probe` of a video file from [`Ffmpeg::prepare`].
-fn open_input(a: &VideoArgs, ffmpeg: Option<&Ffmpeg>, probe: Option<Probe>) -> Result<Opened> {
+/// The input's frames; a video file's probe and decoder from [`Ffmpeg::prepare`].
+fn open_input(a: &VideoArgs, decoder: Option<(Probe, PendingDecoder)>) -> Result<Opened> {
     let max = a.model.max_pixels;
     let y4m = |reader: Y4mReader<BufReader<Box<dyn Read + Send>>>,
                protected: Vec<PathBuf>,
@@ -306,21 +356,10 @@ fn open_input(a: &VideoArgs, ffmpeg: Option<&Ffmpeg>, probe: Option<Probe>) -> R
         return Ok(y4m(reader, vec![a.input.clone()], expected));
     }
     // Anything else is a video file for ffmpeg.
-    let (Some(ff), Some(probe)) = (ffmpeg, probe) else {
+    let Some((probe, decoder)) = decoder else {
         bail!("{}: ffmpeg was not set up for it", a.input.display());
     };
-    let target = y4m_target(probe.video.pix_fmt.as_deref());
-    if target.converts {
-        eprintln!(
-            "unshear video: note: {} is {}, processed as {} (the nearest layout unshear \
-             reads)",
-            a.input.display(),
-            probe.video.pix_fmt.as_deref().unwrap_or("?"),
-            target.pix_fmt
-        );
-    }
-    let args = decode_args(&a.input, &probe, &target, &ff.caps);
-    let decoder = Decoder::start(&ff.tools, &args, &a.input, max, probe.video.frames)?;
+    let decoder = decoder.open(max)?;
     Ok(Opened {
         header: Some(decoder.header().to_vec()),
         format: decoder.format().clone(),
@@ -380,10 +419,14 @@ pub fn video(a: VideoArgs) -> Result<()> {
         Output::Container(o) => Some(format!("writing {}", o.display())),
         _ => None,
     };
+    let container_out = match &output {
+        Output::Container(o) => Some(o.as_path()),
+        _ => None,
+    };
     let (models, prepared) = std::thread::scope(|scope| {
         let prepared = why.map(|why| {
             let a = &a;
-            scope.spawn(move || Ffmpeg::prepare(a, &why, container_in))
+            scope.spawn(move || Ffmpeg::prepare(a, &why, container_in, container_out))
         });
         let models = load_models(&a.model);
         let prepared = prepared.map(|h| {
@@ -393,9 +436,9 @@ pub fn video(a: VideoArgs) -> Result<()> {
         (models, prepared)
     });
     let mut unshear = models?;
-    let (ffmpeg, probe) = match prepared.transpose()? {
-        Some((f, p)) => (Some(f), p),
-        None => (None, None),
+    let (ffmpeg, decoder, mut job) = match prepared.transpose()? {
+        Some(p) => (Some(p.ff), p.input, p.job),
+        None => (None, None, None),
     };
     if a.model.shear_model.is_none() {
         // Per frame, equation 5 is the steadiest of the models (synthetic clip in
@@ -403,7 +446,7 @@ pub fn video(a: VideoArgs) -> Result<()> {
         // shear-roll-yaw, whose roll and mouth terms add frame-to-frame noise).
         unshear.set_model(unshear::estimate::ShearModel::Equation5);
     }
-    let input = open_input(&a, ffmpeg.as_ref(), probe)?;
+    let input = open_input(&a, decoder)?;
     let Opened {
         mut source,
         header,
@@ -510,21 +553,20 @@ pub fn video(a: VideoArgs) -> Result<()> {
         }
         Output::Container(o) => {
             let ff = ffmpeg.as_ref().context("ffmpeg was not set up")?;
-            let settings = EncodeSettings {
-                codec: a.codec.clone(),
-                crf: a.crf,
+            let job = match job.take() {
+                Some(job) => job,
+                None => EncodeJob::start(
+                    &a,
+                    ff,
+                    o,
+                    &protected,
+                    format.bit_depth,
+                    container.as_ref().map(|(p, probe)| (p.as_path(), probe)),
+                )?,
             };
-            let (stats, plan) = encode(
-                &a,
-                ff,
-                o,
-                &protected,
-                header.as_deref(),
-                &format,
-                container.as_ref(),
-                &settings,
-                |sink| run(source.as_mut(), Some(sink), &mut processor, &mut on_frame),
-            )?;
+            let (stats, plan) = job.finish(&a, ff, header.as_deref(), &format, |sink| {
+                run(source.as_mut(), Some(sink), &mut processor, &mut on_frame)
+            })?;
             written = Some((o.clone(), plan));
             stats
         }
@@ -582,73 +624,115 @@ enum Output {
     Container(PathBuf),
 }
 
-/// Encodes into `out` through a temporary file beside it: `process` runs the clip into the
-/// encoder; the file is renamed to `out` only when everything succeeded (after the remux pass
-/// that sets the rotation, for an older ffmpeg).
-#[allow(clippy::too_many_arguments)]
-fn encode(
-    a: &VideoArgs,
-    ff: &Ffmpeg,
-    out: &Path,
-    protected: &[PathBuf],
-    header: Option<&[u8]>,
-    format: &VideoFormat,
-    container: Option<&(PathBuf, Probe)>,
-    settings: &EncodeSettings,
-    process: impl FnOnce(&mut dyn FrameSink) -> unshear::Result<RunStats>,
-) -> Result<(RunStats, EncodePlan)> {
-    if protected.iter().any(|p| same_path(p, out)) {
-        bail!("refusing to write {}: it is an input file", out.display());
-    }
-    if out.exists() && !a.force {
-        bail!(
-            "refusing to write {}: it exists; use --force to replace it",
-            out.display()
-        );
-    }
-    let dir = match out.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let ext = out
-        .extension()
-        .and_then(|e| e.to_str())
-        .unwrap_or("mp4")
-        .to_string();
-    let tmp = TempOutput::new(dir, &ext)?;
-    let source = container.map(|(p, probe)| (p.as_path(), probe));
-    let plan = EncodePlan::new(tmp.path(), format, source, settings, &ff.caps)?;
-    // The y4m header the encoder reads: the input's own, or one made for image frames.
-    let header = match header {
-        Some(h) => h.to_vec(),
-        None => Y4mWriter::new(Vec::new(), format)?.finish()?,
-    };
-    let mut encoder = Encoder::start(&ff.tools, &plan.args, &header, out)?;
-    let stats = process(&mut encoder).with_context(|| format!("writing {}", out.display()))?;
-    drop(encoder);
-    let finished = match plan.remux_rotation {
-        Some(rotation) => {
-            let rotated = TempOutput::new(dir, &ext)?;
-            let args = EncodePlan::remux_args(tmp.path(), rotated.path(), rotation);
-            ff.tools
-                .run(&args, &format!("setting the rotation of {}", out.display()))?;
-            // Only FFmpeg before 6.1 takes the tag this way: check that it did.
-            let got = ff.tools.probe(rotated.path())?.video.rotation;
-            if got != rotation {
-                eprintln!(
-                    "unshear video: warning: this ffmpeg did not keep the rotation ({rotation} \
-                     degrees, the output has {got}); FFmpeg 6.1 or later sets it directly"
-                );
-            }
-            rotated
+/// Writing a video file: the checks of the output, the temporary file beside it, the plan,
+/// and the encoding `ffmpeg` started.
+struct EncodeJob {
+    out: PathBuf,
+    dir: PathBuf,
+    ext: String,
+    tmp: TempOutput,
+    plan: EncodePlan,
+    encoder: PendingEncoder,
+}
+
+impl EncodeJob {
+    /// Checks `out` (never an input, replaced only with `--force`), creates the temporary file
+    /// and starts `ffmpeg` on it, for frames of `bit_depth` from `source`, if a video file.
+    fn start(
+        a: &VideoArgs,
+        ff: &Ffmpeg,
+        out: &Path,
+        protected: &[PathBuf],
+        bit_depth: u32,
+        source: Option<(&Path, &Probe)>,
+    ) -> Result<Self> {
+        if protected.iter().any(|p| same_path(p, out)) {
+            bail!("refusing to write {}: it is an input file", out.display());
         }
-        None => tmp,
-    };
-    if interrupt::requested() {
-        bail!("interrupted");
+        if out.exists() && !a.force {
+            bail!(
+                "refusing to write {}: it exists; use --force to replace it",
+                out.display()
+            );
+        }
+        let dir = match out.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        let ext = out
+            .extension()
+            .and_then(|e| e.to_str())
+            .unwrap_or("mp4")
+            .to_string();
+        let tmp = TempOutput::new(&dir, &ext)?;
+        let settings = EncodeSettings {
+            codec: a.codec.clone(),
+            crf: a.crf,
+        };
+        let plan = EncodePlan::new(tmp.path(), bit_depth, source, &settings, &ff.caps)?;
+        let encoder = PendingEncoder::spawn(&ff.tools, &plan.args, out)?;
+        Ok(Self {
+            out: out.to_path_buf(),
+            dir,
+            ext,
+            tmp,
+            plan,
+            encoder,
+        })
     }
-    finished.persist(out, a.force)?;
-    Ok((stats, plan))
+
+    /// Gives the encoder the y4m header (the input's own, or one made for image frames of
+    /// `format`), lets `process` run the clip into it, and renames the file to the output's
+    /// name only when everything succeeded (after the remux pass that sets the rotation, for
+    /// an older ffmpeg).
+    fn finish(
+        self,
+        a: &VideoArgs,
+        ff: &Ffmpeg,
+        header: Option<&[u8]>,
+        format: &VideoFormat,
+        process: impl FnOnce(&mut dyn FrameSink) -> unshear::Result<RunStats>,
+    ) -> Result<(RunStats, EncodePlan)> {
+        let Self {
+            out,
+            dir,
+            ext,
+            tmp,
+            plan,
+            encoder,
+        } = self;
+        let header = match header {
+            Some(h) => h.to_vec(),
+            None => Y4mWriter::new(Vec::new(), format)?.finish()?,
+        };
+        let mut encoder = encoder.begin(&header)?;
+        let stats = process(&mut encoder).with_context(|| format!("writing {}", out.display()))?;
+        drop(encoder);
+        let finished = match plan.remux_rotation {
+            Some(rotation) => {
+                let rotated = TempOutput::new(&dir, &ext)?;
+                let args = EncodePlan::remux_args(tmp.path(), rotated.path(), rotation);
+                ff.tools
+                    .run(&args, &format!("setting the rotation of {}", out.display()))?;
+                // Only FFmpeg before 6.1 takes the tag this way: check that it did.
+                let got = ff.tools.probe(rotated.path())?.video.rotation;
+                if got != rotation {
+                    eprintln!(
+                        "unshear video: warning: this ffmpeg did not keep the rotation \
+                         ({rotation} degrees, the output has {got}); FFmpeg 6.1 or later sets \
+                         it directly"
+                    );
+                }
+                rotated
+            }
+            None => tmp,
+        };
+        if interrupt::requested() {
+            bail!("interrupted");
+        }
+        finished.persist(&out, a.force)?;
+        Ok((stats, plan))
+    }
 }
 
 /// What an encoding did, for the summary.
