@@ -373,12 +373,18 @@ fn ten_bit_hevc_stays_ten_bit() {
         .arg("-o")
         .arg(&out)
         .arg(format!("--json={}", json.display()))
+        .args(["--preset", "ultrafast"])
         .output()
         .expect("unshear");
     assert!(
         run.status.success(),
         "{}",
         String::from_utf8_lossy(&run.stderr)
+    );
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains("libx265 crf 20 preset ultrafast"),
+        "{stderr}"
     );
     let dst = streams(&out);
     let v = stream(&dst, "video");

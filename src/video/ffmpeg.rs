@@ -638,6 +638,9 @@ pub struct EncodeSettings {
     pub codec: Option<String>,
     /// Constant quality (`--crf`); [`default_crf`] otherwise.
     pub crf: Option<f64>,
+    /// The encoder's speed preset (`--preset`: `veryfast`, `slow`... for x264 and x265, a
+    /// number for SVT-AV1), passed as `-preset`; the encoder's default otherwise.
+    pub preset: Option<String>,
 }
 
 /// The encoding pass: the corrected y4m pipe (stdin) and the source's other streams into a
@@ -650,6 +653,8 @@ pub struct EncodePlan {
     pub codec: Option<String>,
     /// The constant quality passed, if any.
     pub crf: Option<f64>,
+    /// The speed preset passed, if any.
+    pub preset: Option<String>,
     /// Each source audio stream and what happens to it.
     pub audio: Vec<(Stream, StreamAction)>,
     /// Each source subtitle stream and what happens to it.
@@ -768,6 +773,9 @@ impl EncodePlan {
                     push(&mut args, &["-b:v", "0"]);
                 }
             }
+            if let Some(p) = &settings.preset {
+                push(&mut args, &["-preset", p]);
+            }
             match c.as_str() {
                 // x265 prints its settings on stderr whatever FFmpeg's log level.
                 "libx265" => push(&mut args, &["-x265-params", "log-level=error"]),
@@ -798,6 +806,7 @@ impl EncodePlan {
             args,
             codec,
             crf,
+            preset: settings.preset.clone(),
             audio,
             subtitles,
             remux_rotation: (keeps_rotation && !caps.display_rotation).then_some(rotation),
@@ -1036,13 +1045,14 @@ mod tests {
             &EncodeSettings {
                 codec: Some("libx264".into()),
                 crf: Some(23.5),
+                preset: Some("veryfast".into()),
             },
             &caps(false),
         )
         .expect("plan");
         let a = strings(&old.args).join(" ");
         assert!(!a.contains("display_rotation"), "{a}");
-        assert!(a.contains("-c:v libx264 -crf 23.5"), "{a}");
+        assert!(a.contains("-c:v libx264 -crf 23.5 -preset veryfast"), "{a}");
         assert_eq!(old.remux_rotation, Some(-90));
         let r = strings(&EncodePlan::remux_args(
             Path::new("t.mp4"),
@@ -1087,8 +1097,8 @@ mod tests {
             10,
             None,
             &EncodeSettings {
-                codec: None,
-                crf: Some(f64::NAN)
+                crf: Some(f64::NAN),
+                ..Default::default()
             },
             &caps(true)
         )

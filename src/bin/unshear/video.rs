@@ -61,6 +61,11 @@ pub struct VideoArgs {
     /// for libx265, 30 for VP9 and AV1].
     #[arg(long, value_name = "N")]
     pub crf: Option<f64>,
+    /// Speed preset of the video encoder, passed to ffmpeg as -preset (libx264 and libx265:
+    /// ultrafast ... veryslow; libsvtav1: 0-13) [default: the encoder's, medium for x264 and
+    /// x265].
+    #[arg(long, value_name = "NAME")]
+    pub preset: Option<String>,
     /// Write one JSON line per frame: `--json` to stdout, `--json=FILE` to a file.
     #[arg(
         long,
@@ -668,6 +673,7 @@ impl EncodeJob {
         let settings = EncodeSettings {
             codec: a.codec.clone(),
             crf: a.crf,
+            preset: a.preset.clone(),
         };
         let plan = EncodePlan::new(tmp.path(), bit_depth, source, &settings, &ff.caps)?;
         let encoder = PendingEncoder::spawn(&ff.tools, &plan.args, out)?;
@@ -737,11 +743,17 @@ impl EncodeJob {
 
 /// What an encoding did, for the summary.
 fn describe(plan: &EncodePlan) -> String {
-    let mut parts = vec![match (&plan.codec, plan.crf) {
-        (Some(c), Some(q)) => format!("video {c} crf {q}"),
-        (Some(c), None) => format!("video {c}"),
-        (None, _) => "video in ffmpeg's default codec".to_string(),
-    }];
+    let mut video = match &plan.codec {
+        Some(c) => format!("video {c}"),
+        None => "video in ffmpeg's default codec".to_string(),
+    };
+    if let Some(q) = plan.crf {
+        video.push_str(&format!(" crf {q}"));
+    }
+    if let Some(p) = &plan.preset {
+        video.push_str(&format!(" preset {p}"));
+    }
+    let mut parts = vec![video];
     let count = |v: &[(unshear::video::ffmpeg::Stream, StreamAction)], kind: &str| {
         let copied = v.iter().filter(|(_, x)| *x == StreamAction::Copy).count();
         let converted: Vec<String> = v
