@@ -149,7 +149,7 @@ fn ffmpeg(args: &[&str], stdin: Option<&[u8]>) {
 }
 
 /// A short H.264 + AAC MP4 of the sheared face, flagged for display rotated by 90 degrees
-/// (by `-display_rotation` where this ffmpeg has it, 6.1 and later, else by the `rotate` tag
+/// (by `-display_rotation` where this ffmpeg has it, as 7.0 does, else by the `rotate` tag
 /// of a stream copy, which only older versions honour).
 fn make_mp4(dir: &Path) -> PathBuf {
     let y4m = dir.join("clip.y4m");

@@ -14,7 +14,8 @@
 //!   them), its global metadata and chapters, its rotation and colour tags, a default codec for
 //!   the container ([`default_codec`]) and quality ([`default_crf`]).
 //!
-//! An `ffmpeg` before 6.1 cannot set the rotation of a stream it encodes (only `-metadata
+//! An `ffmpeg` without `-display_rotation` (5.1 has none; 7.0 has it) cannot set the rotation of
+//! a stream it encodes (only `-metadata
 //! rotate=` on a stream copy does); the plan then asks for a second, stream-copy pass
 //! ([`EncodePlan::remux_args`]).
 
@@ -35,7 +36,8 @@ fn video_err(msg: impl Into<String>) -> Error {
 pub struct Capabilities {
     /// `-fps_mode` is known (5.1 and later); otherwise the older `-vsync`.
     pub fps_mode: bool,
-    /// `-display_rotation` is known (6.1 and later): the rotation is set in the encoding pass.
+    /// `-display_rotation` is known (7.0 has it, 5.1 not): the rotation is set in the encoding
+    /// pass.
     pub display_rotation: bool,
     /// Names of the encoders built in (`libx264`, `aac`...).
     pub encoders: BTreeSet<String>,
@@ -566,8 +568,9 @@ pub fn default_codec(
         .map(|e| (*e).to_string())
 }
 
-/// The default constant-quality setting of an encoder (visually transparent for faces at
-/// normal viewing: x264's 18, x265's 20, 30 for VP9 and AV1), `None` for encoders without one.
+/// The default constant-quality setting of an encoder (x264 18 and x265 20, well below their own
+/// defaults of 23 and 28 because the output stands in for the original; 30 for VP9 and AV1),
+/// `None` for encoders without one.
 pub fn default_crf(encoder: &str) -> Option<f64> {
     match encoder {
         "libx264" => Some(18.0),

@@ -720,12 +720,13 @@ impl EncodeJob {
                 let args = EncodePlan::remux_args(tmp.path(), rotated.path(), rotation);
                 ff.tools
                     .run(&args, &format!("setting the rotation of {}", out.display()))?;
-                // Only FFmpeg before 6.1 takes the tag this way: check that it did.
+                // Only older FFmpeg (5.1, not 7.0) takes the tag this way: check that it did.
                 let got = ff.tools.probe(rotated.path())?.video.rotation;
                 if got != rotation {
                     eprintln!(
                         "unshear video: warning: this ffmpeg did not keep the rotation \
-                         ({rotation} degrees, the output has {got}); FFmpeg 6.1 or later sets \
+                         ({rotation} degrees, the output has {got}); an FFmpeg with \
+                         -display_rotation (7.0 has it) sets
                          it directly"
                     );
                 }
