@@ -1,9 +1,9 @@
 //! `unshear video` on video files through the `ffmpeg` program: a short H.264 MP4 with an AAC
 //! sound track and a rotation flag, made by ffmpeg from a sheared fixture face, comes out with
 //! its sound, frame count, duration and rotation and the face's shear measured on every frame;
-//! a 10-bit HEVC clip and a 10-bit y4m stay 10-bit; a truncated file, a failing encoder and
-//! Ctrl-C leave no output; a missing ffmpeg is a clear error. Tests that need ffmpeg print a
-//! note and pass when it is not installed.
+//! a 10-bit HEVC clip and a 10-bit y4m stay 10-bit; a truncated file, a failing encoder, an
+//! ffmpeg killed half-way and Ctrl-C leave no output; a missing ffmpeg is a clear error. Tests
+//! that need ffmpeg print a note and pass when it is not installed.
 
 mod common;
 
@@ -631,4 +631,97 @@ fn interrupt_ends_ffmpeg_and_leaves_nothing() {
         }
     }
     assert!(left.is_empty(), "still running: {left:?}");
+}
+
+/// The processes whose command line holds `needle` and `marker` (Linux's /proc).
+#[cfg(target_os = "linux")]
+fn processes_with(needle: &str, marker: &str) -> Vec<(u32, String)> {
+    let mut found = Vec::new();
+    if let Ok(procs) = std::fs::read_dir("/proc") {
+        for p in procs.filter_map(|e| e.ok()) {
+            let Some(pid) = p.file_name().to_str().and_then(|n| n.parse::<u32>().ok()) else {
+                continue;
+            };
+            if let Ok(cmdline) = std::fs::read(p.path().join("cmdline")) {
+                let cmdline = String::from_utf8_lossy(&cmdline).replace('\0', " ");
+                if cmdline.contains(needle) && cmdline.contains(marker) {
+                    found.push((pid, cmdline));
+                }
+            }
+        }
+    }
+    found
+}
+
+/// An ffmpeg that dies half-way (the decoder, then the encoder, killed once frames flow): a
+/// clear error naming it, exit 1, no output, no temporary file, the other ffmpeg ended too.
+#[cfg(target_os = "linux")]
+#[test]
+fn ffmpeg_dying_half_way_leaves_nothing() {
+    use std::io::{BufRead, BufReader};
+    if !have_ffmpeg("ffmpeg_dying_half_way") || !has_encoder("libx264", "ffmpeg_dying_half_way") {
+        return;
+    }
+    let dir = tempfile::tempdir().expect("temp dir");
+    let clip = dir.path().join("long.mp4");
+    ffmpeg(
+        &[
+            "-f",
+            "lavfi",
+            "-i",
+            "testsrc2=size=320x240:rate=25",
+            "-t",
+            "10",
+            "-c:v",
+            "libx264",
+            "-preset",
+            "ultrafast",
+            path(&clip),
+        ],
+        None,
+    );
+    let needle = dir.path().to_string_lossy().into_owned();
+    // The decoder's command line has -xerror; the encoder's reads the pipe ("-i -").
+    for (victim, marker, says) in [
+        ("decoder", "-xerror", "decoding"),
+        ("encoder", "yuv4mpegpipe -i -", "encoding"),
+    ] {
+        let out = dir.path().join("out.mp4");
+        let mut child = unshear_cmd()
+            .arg("video")
+            .arg(&clip)
+            .arg("-o")
+            .arg(&out)
+            .arg("--json")
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("spawn");
+        let mut stdout = BufReader::new(child.stdout.take().expect("stdout"));
+        let mut first = String::new();
+        stdout.read_line(&mut first).expect("first line");
+        let targets = processes_with(&needle, marker);
+        assert_eq!(targets.len(), 1, "{victim}: {targets:?}");
+        let killed = Command::new("kill")
+            .args(["-KILL", &targets[0].0.to_string()])
+            .status()
+            .expect("kill");
+        assert!(killed.success());
+        std::io::copy(&mut stdout, &mut std::io::sink()).expect("drain");
+        let output = child.wait_with_output().expect("wait");
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(1), "{victim}: {stderr}");
+        assert!(
+            stderr.contains(&format!("ffmpeg failed {says}"))
+                || stderr.contains(&format!("ffmpeg {says}")),
+            "{victim}: {stderr}"
+        );
+        assert!(!out.exists(), "{victim}: no output under the final name");
+        assert_eq!(temporaries(dir.path()), Vec::<String>::new());
+        let left: Vec<_> = processes_with(&needle, "ffmpeg")
+            .into_iter()
+            .filter(|(_, c)| !c.contains("kill"))
+            .collect();
+        assert!(left.is_empty(), "{victim}: still running: {left:?}");
+    }
 }
