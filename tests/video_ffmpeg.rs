@@ -725,3 +725,79 @@ fn ffmpeg_dying_half_way_leaves_nothing() {
         assert!(left.is_empty(), "{victim}: still running: {left:?}");
     }
 }
+
+/// A clip whose rate drops (1 s at 30 fps, then 1 s at 10 fps) comes out at a constant 30 fps
+/// with frames repeated, so that its picture keeps its timing against the sound (spread evenly
+/// at the 22.6 fps average, the frame at 1 s would show at 1.3 s).
+#[test]
+fn variable_frame_rate_keeps_picture_and_sound_in_step() {
+    if !have_ffmpeg("variable_frame_rate") || !has_encoder("libx264", "variable_frame_rate") {
+        return;
+    }
+    let dir = tempfile::tempdir().expect("temp dir");
+    let clip = dir.path().join("vfr.mp4");
+    ffmpeg(
+        &[
+            "-f",
+            "lavfi",
+            "-i",
+            "testsrc2=size=320x240:rate=30:duration=1",
+            "-f",
+            "lavfi",
+            "-i",
+            "testsrc2=size=320x240:rate=10:duration=1",
+            "-f",
+            "lavfi",
+            "-i",
+            "sine=frequency=440:sample_rate=48000:duration=2",
+            "-filter_complex",
+            "[0:v][1:v]concat=n=2:v=1:a=0[v]",
+            "-map",
+            "[v]",
+            "-map",
+            "2:a",
+            "-fps_mode",
+            "vfr",
+            "-c:v",
+            "libx264",
+            "-preset",
+            "ultrafast",
+            "-c:a",
+            "aac",
+            path(&clip),
+        ],
+        None,
+    );
+    let out = dir.path().join("out.mp4");
+    let run = unshear_cmd()
+        .arg("video")
+        .arg(&clip)
+        .arg("-o")
+        .arg(&out)
+        .output()
+        .expect("unshear");
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{stderr}");
+    assert!(stderr.contains("variable frame rate"), "{stderr}");
+    let (src, dst) = (streams(&clip), streams(&out));
+    let v = stream(&dst, "video");
+    assert_eq!(v["avg_frame_rate"], "30/1");
+    let frames = number(&v["nb_frames"]);
+    let seconds = number(&v["duration"]);
+    assert!(
+        (frames / 30.0 - seconds).abs() < 0.05,
+        "{frames} frames, {seconds} s"
+    );
+    // The picture spans the clip: 1 s at 30 fps plus 1 s of 10 frames, about 1.8-1.9 s (the
+    // evenly spread average rate would give the same span, but with the picture late in its
+    // first half; the constant rate is what keeps each frame at its time).
+    let source = number(&stream(&src, "video")["duration"]);
+    assert!(
+        seconds >= source - 0.05 && seconds <= 2.0,
+        "{seconds} s against {source} s"
+    );
+    assert!(
+        frames > 50.0,
+        "frames repeated where the rate dropped: {frames}"
+    );
+}

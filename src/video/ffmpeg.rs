@@ -6,7 +6,8 @@
 //!   reads the video stream (size, pixel format, frame count and rate, rotation, colour tags)
 //!   and the audio and subtitle streams to carry over.
 //! * **Decode**: [`decode_args`] turns the first video stream into a y4m pipe at its own bit
-//!   depth ([`y4m_target`]), every decoded frame exactly once (`-fps_mode passthrough`), in its
+//!   depth ([`y4m_target`]), every decoded frame exactly once (`-fps_mode passthrough`) or, for
+//!   a clip whose rate really varies, at a constant rate ([`Probe::timing`]), in its
 //!   stored orientation (`-noautorotate`: rolling shutter shears along the sensor's rows, which
 //!   are the stored rows), stopping with an error at a corrupt packet (`-xerror`).
 //! * **Encode**: [`EncodePlan::new`] writes the corrected y4m pipe into a container with the
@@ -115,6 +116,9 @@ pub struct VideoStream {
     pub frames: Option<u64>,
     /// Average frame rate (frames over duration), as a fraction.
     pub avg_frame_rate: Option<(u32, u32)>,
+    /// The stream's nominal rate (FFmpeg's guess of the rate all timestamps fit), as a
+    /// fraction.
+    pub r_frame_rate: Option<(u32, u32)>,
     /// Duration in seconds.
     pub duration: Option<f64>,
     /// Counter-clockwise rotation for display, degrees, in `(-180, 180]` (0 without one): the
@@ -174,6 +178,7 @@ struct RawStream {
     pix_fmt: Option<String>,
     nb_frames: Option<String>,
     avg_frame_rate: Option<String>,
+    r_frame_rate: Option<String>,
     duration: Option<String>,
     color_range: Option<String>,
     color_space: Option<String>,
@@ -276,6 +281,7 @@ impl Probe {
                 pix_fmt: known(v.pix_fmt),
                 frames: v.nb_frames.and_then(|n| n.parse().ok()).filter(|&n| n > 0),
                 avg_frame_rate: v.avg_frame_rate.as_deref().and_then(parse_rate),
+                r_frame_rate: v.r_frame_rate.as_deref().and_then(parse_rate),
                 duration: v.duration.and_then(|d| d.parse().ok()),
                 rotation,
                 color: ColorTags {
@@ -291,16 +297,74 @@ impl Probe {
         })
     }
 
-    /// The number of frames to expect: the container's count, else duration times average
-    /// rate (for a progress bar; the real count may differ).
+    /// The number of frames to expect: the container's count, else (and for a clip decoded
+    /// at a constant rate) duration times rate (for a progress bar; the real count may
+    /// differ).
     pub fn expected_frames(&self) -> Option<u64> {
         let v = &self.video;
-        v.frames.or_else(|| {
-            let (n, d) = v.avg_frame_rate?;
+        let from_duration = |rate: (u32, u32)| {
             let seconds = v.duration.or(self.duration)?;
-            let frames = (seconds * f64::from(n) / f64::from(d)).round();
+            let frames = (seconds * as_f64(rate)).round();
             (frames.is_finite() && frames >= 1.0).then_some(frames as u64)
-        })
+        };
+        match self.timing() {
+            Timing::Constant(rate) => from_duration(rate).or(v.frames),
+            Timing::Passthrough(rate) => v.frames.or_else(|| from_duration(rate)),
+            Timing::Unknown => v.frames,
+        }
+    }
+}
+
+/// How decoded frames are timed in the y4m pipe, which has one rate for all frames.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Timing {
+    /// Every decoded frame once, the output at this rate (the average): for clips whose rate
+    /// is steady, so that the frame count is kept exactly and timing moves by jitter only.
+    Passthrough((u32, u32)),
+    /// Frames repeated or dropped by the decoder to this constant rate (the nominal one), for
+    /// clips whose rate really varies (a phone slowing down in low light), so that picture and
+    /// sound stay in step.
+    Constant((u32, u32)),
+    /// No usable rate is known: every frame once, at the y4m stream's own rate.
+    Unknown,
+}
+
+impl Timing {
+    /// The rate of the y4m pipe, when known.
+    pub fn rate(self) -> Option<(u32, u32)> {
+        match self {
+            Timing::Passthrough(r) | Timing::Constant(r) => Some(r),
+            Timing::Unknown => None,
+        }
+    }
+}
+
+fn as_f64((n, d): (u32, u32)) -> f64 {
+    f64::from(n) / f64::from(d)
+}
+
+impl Probe {
+    /// How to time the frames: [`Timing::Passthrough`] when the average rate is within 0.5% of
+    /// the nominal one (or no nominal rate is known), [`Timing::Constant`] at the nominal rate
+    /// otherwise, or at the average when the nominal rate is implausible (more than twice the
+    /// average, or above 240).
+    pub fn timing(&self) -> Timing {
+        let v = &self.video;
+        match (v.avg_frame_rate, v.r_frame_rate) {
+            (Some(avg), Some(nominal)) => {
+                let (a, r) = (as_f64(avg), as_f64(nominal));
+                if (a - r).abs() <= 0.005 * r {
+                    Timing::Passthrough(avg)
+                } else if r > 2.0 * a || r > 240.0 {
+                    Timing::Constant(avg)
+                } else {
+                    Timing::Constant(nominal)
+                }
+            }
+            (Some(avg), None) => Timing::Passthrough(avg),
+            (None, Some(nominal)) if as_f64(nominal) <= 240.0 => Timing::Passthrough(nominal),
+            _ => Timing::Unknown,
+        }
     }
 }
 
@@ -453,10 +517,10 @@ pub fn decode_args(
     args.push(input.as_os_str().to_owned());
     let map = format!("0:{}", probe.video.index);
     push(&mut args, &["-map", &map, "-an", "-sn", "-dn"]);
-    if caps.fps_mode {
-        push(&mut args, &["-fps_mode", "passthrough"]);
-    } else {
-        push(&mut args, &["-vsync", "passthrough"]);
+    let mode = if caps.fps_mode { "-fps_mode" } else { "-vsync" };
+    match probe.timing() {
+        Timing::Constant((n, d)) => push(&mut args, &[mode, "cfr", "-r", &format!("{n}/{d}")]),
+        _ => push(&mut args, &[mode, "passthrough"]),
     }
     push(
         &mut args,
@@ -709,15 +773,15 @@ impl EncodePlan {
         let mut args = quiet();
         args.push("-y".into());
         // The pipe: its rotation set here when this ffmpeg can (autorotation off, or it would
-        // turn the pixels instead), its rate the source's average so that the duration holds
-        // when a variable-rate source was piped frame by frame.
+        // turn the pixels instead), its rate the one the decoder was given (`Probe::timing`),
+        // so that the duration holds when a source was piped frame by frame.
         if keeps_rotation && caps.display_rotation {
             push(
                 &mut args,
                 &["-noautorotate", "-display_rotation", &rotation.to_string()],
             );
         }
-        if let Some((n, d)) = probe.and_then(|p| p.video.avg_frame_rate) {
+        if let Some((n, d)) = probe.and_then(|p| p.timing().rate()) {
             push(&mut args, &["-r", &format!("{n}/{d}")]);
         }
         push(&mut args, &["-f", "yuv4mpegpipe", "-i", "-"]);
@@ -863,7 +927,8 @@ mod tests {
         "streams": [
             {"index": 0, "codec_type": "video", "codec_name": "hevc", "width": 1920,
              "height": 1080, "pix_fmt": "yuv420p10le", "nb_frames": "300",
-             "avg_frame_rate": "30000/1001", "duration": "10.01", "color_range": "tv",
+             "avg_frame_rate": "30000/1001", "r_frame_rate": "30000/1001",
+             "duration": "10.01", "color_range": "tv",
              "color_space": "bt2020nc", "color_transfer": "arib-std-b67",
              "color_primaries": "bt2020", "chroma_location": "left",
              "tags": {"rotate": "90"},
@@ -935,6 +1000,51 @@ mod tests {
         let mkv = PROBE.replace("\"nb_frames\": \"300\",", "");
         let p = Probe::parse(mkv.as_bytes()).expect("valid JSON");
         assert_eq!(p.expected_frames(), Some(300));
+    }
+
+    #[test]
+    fn steady_clips_pass_through_and_variable_ones_get_a_constant_rate() {
+        let probe = |avg: &str, r: &str| {
+            let json = PROBE.replace(
+                "\"30000/1001\", \"r_frame_rate\": \"30000/1001\"",
+                &format!("\"{avg}\", \"r_frame_rate\": \"{r}\""),
+            );
+            Probe::parse(json.as_bytes()).expect("valid JSON")
+        };
+        assert_eq!(
+            probe("30000/1001", "30000/1001").timing(),
+            Timing::Passthrough((30000, 1001))
+        );
+        // Jitter around the nominal rate: passed through at the average.
+        assert_eq!(
+            probe("2990/100", "30/1").timing(),
+            Timing::Passthrough((2990, 100))
+        );
+        // A phone slowing down in low light: repeated frames at the nominal rate.
+        let slow = probe("2430/100", "30/1");
+        assert_eq!(slow.timing(), Timing::Constant((30, 1)));
+        assert_eq!(slow.expected_frames(), Some(300), "10.01 s at 30 fps");
+        let caps = caps(true);
+        let t = y4m_target(slow.video.pix_fmt.as_deref());
+        let a = strings(&decode_args(Path::new("in.mov"), &slow, &t, &caps)).join(" ");
+        assert!(a.contains("-fps_mode cfr -r 30/1"), "{a}");
+        let plan = EncodePlan::new(
+            Path::new("o.mp4"),
+            10,
+            Some((Path::new("in.mov"), &slow)),
+            &EncodeSettings::default(),
+            &caps,
+        )
+        .expect("plan");
+        assert!(strings(&plan.args)
+            .join(" ")
+            .contains("-r 30/1 -f yuv4mpegpipe"));
+        // An implausible nominal rate: the average.
+        assert_eq!(
+            probe("2430/100", "90000/1").timing(),
+            Timing::Constant((2430, 100))
+        );
+        assert_eq!(probe("0/0", "0/0").timing(), Timing::Unknown);
     }
 
     #[test]

@@ -25,7 +25,7 @@ use crate::{interrupt, load_models, usage_error};
 use unshear::imageio::WriteOptions;
 use unshear::landmarks::Budget;
 use unshear::video::ffmpeg::{
-    decode_args, y4m_target, Capabilities, EncodePlan, EncodeSettings, Probe, StreamAction,
+    decode_args, y4m_target, Capabilities, EncodePlan, EncodeSettings, Probe, StreamAction, Timing,
 };
 use unshear::video::frames::{list_frames, FrameFolderReader, FrameFolderWriter};
 use unshear::video::temporal::{FilterParams, DEFAULT_SMOOTHING_LAG};
@@ -271,7 +271,25 @@ impl Ffmpeg {
             );
         }
         let args = decode_args(&a.input, &probe, &target, &ff.caps);
-        let decoder = PendingDecoder::spawn(&ff.tools, &args, &a.input, probe.video.frames)?;
+        // Decoded at a constant rate, the frame count may differ from the index's.
+        let indexed = match probe.timing() {
+            Timing::Constant((n, d)) => {
+                let avg = probe
+                    .video
+                    .avg_frame_rate
+                    .map_or(0.0, |(an, ad)| f64::from(an) / f64::from(ad));
+                eprintln!(
+                    "unshear video: note: {} has a variable frame rate (average {avg:.2} fps): \
+                     it is decoded at a constant {:.2} fps, frames repeated where the rate \
+                     dropped, so that picture and sound stay in step",
+                    a.input.display(),
+                    f64::from(n) / f64::from(d)
+                );
+                None
+            }
+            _ => probe.video.frames,
+        };
+        let decoder = PendingDecoder::spawn(&ff.tools, &args, &a.input, indexed)?;
         let job = match out {
             Some(o) => Some(EncodeJob::start(
                 a,
