@@ -136,6 +136,44 @@ fn decode<R: BufRead + Seek>(
     Ok(img)
 }
 
+/// Share of an image's rows from which [`missing_data_warning`] reports a flat bottom: a decoder
+/// fills what a damaged file lacks with one value, and half a picture of it is no photo.
+pub const MISSING_ROWS_SHARE: f64 = 0.5;
+
+/// A warning when the bottom [`MISSING_ROWS_SHARE`] or more of `img`'s rows are all one value,
+/// as a decoder leaves the rows a damaged file has no data for (image-rs fills them with grey
+/// and reports success): what is measured in such an image is only its top. `None` otherwise,
+/// and for images under 16 rows.
+pub fn missing_data_warning(img: &DynamicImage) -> Option<String> {
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    if h < 16 || w == 0 {
+        return None;
+    }
+    let bytes = img.as_bytes();
+    let row = bytes.len() / h;
+    let pixel = row / w;
+    if row == 0 || pixel == 0 {
+        return None;
+    }
+    let last = &bytes[(h - 1) * row..h * row];
+    let value = &last[..pixel];
+    if !last.chunks_exact(pixel).all(|p| p == value) {
+        return None;
+    }
+    let flat = bytes
+        .chunks_exact(row)
+        .rev()
+        .take_while(|r| *r == last)
+        .count();
+    let share = flat as f64 / h as f64;
+    (share >= MISSING_ROWS_SHARE).then(|| {
+        format!(
+            "the bottom {:.0}% of the rows ({flat} of {h}) are one flat value, as a decoder leaves data missing from a damaged file: only the top was measured",
+            share * 100.0
+        )
+    })
+}
+
 /// Luma (8-bit grey) copy of any image, as used by the face detector and feature finder
 /// (Rec. 709 weights, as `image` computes them; alpha ignored).
 pub fn to_gray(img: &DynamicImage) -> GrayImage {
