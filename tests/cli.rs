@@ -57,7 +57,7 @@ fn estimate_json_has_the_documented_shape() {
     let obj = v.as_object().expect("object");
     let mut keys: Vec<&str> = obj.keys().map(String::as_str).collect();
     keys.sort();
-    assert_eq!(keys, ["faces", "file", "k"]);
+    assert_eq!(keys, ["faces", "faces_disagree", "file", "k", "warnings"]);
     assert!(v["file"]
         .as_str()
         .expect("file")
