@@ -757,6 +757,27 @@ mod tests {
     }
 
     #[test]
+    fn a_decode_mostly_one_flat_value_at_the_bottom_is_warned_about() {
+        let photo = |flat_rows: u32| {
+            DynamicImage::ImageRgb8(image::RgbImage::from_fn(30, 40, |x, y| {
+                if y >= 40 - flat_rows {
+                    image::Rgb([128, 128, 128])
+                } else {
+                    image::Rgb([(x * 7) as u8, (y * 5) as u8, 9])
+                }
+            }))
+        };
+        let w = missing_data_warning(&photo(30)).expect("75% flat");
+        assert!(w.contains("75%") && w.contains("30 of 40"), "{w}");
+        assert!(missing_data_warning(&photo(20)).is_some(), "half flat");
+        assert!(missing_data_warning(&photo(19)).is_none());
+        assert!(missing_data_warning(&photo(0)).is_none());
+        // A flat picture under 16 rows says nothing.
+        let small = DynamicImage::ImageLuma8(GrayImage::new(10, 15));
+        assert!(missing_data_warning(&small).is_none());
+    }
+
+    #[test]
     fn truncated_jpeg_is_an_error_but_trailing_data_is_fine() {
         let img =
             DynamicImage::ImageRgb8(RgbImage::from_fn(32, 24, |x, y| Rgb([smooth(x, y, 0); 3])));
