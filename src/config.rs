@@ -79,8 +79,9 @@ pub struct Config {
     /// Confidence (0 to 1) below which a face's estimate is refused (`k: None`).
     pub min_confidence: f64,
     /// Largest |shear| a face's estimate may have and be accepted: beyond it the estimate is
-    /// refused as physically implausible (`k: None`, [`Refusal::ImplausibleShear`]
-    /// (crate::pipeline::Refusal::ImplausibleShear)); see [`DEFAULT_MAX_SHEAR`].
+    /// refused as physically implausible (`k: None`,
+    /// [`Refusal::ImplausibleShear`](crate::pipeline::Refusal::ImplausibleShear)); see
+    /// [`DEFAULT_MAX_SHEAR`].
     pub max_shear: f64,
     /// How much work the landmark network may spend on each face.
     pub network_budget: Budget,
