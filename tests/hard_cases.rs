@@ -340,3 +340,42 @@ fn correct_leaves_a_texture_untouched_and_says_why() {
     assert!(line["k"].is_null());
     assert!(!dir.path().join("leaves.unshear.png").exists());
 }
+
+/// A JPEG damaged in transit whose header declares 308x56826 pixels but holds the data of a
+/// 320x243 photo: bounded cost (the views that would be mostly padding are skipped) and a
+/// warning that the decode is mostly without data.
+#[test]
+fn a_damaged_jpeg_declaring_a_tall_image_is_reported_as_missing_data() {
+    let mut bytes = std::fs::read(common::fixture("subject01.normal.jpeg")).expect("fixture");
+    let sof = bytes
+        .windows(2)
+        .position(|w| w == [0xFF, 0xC0])
+        .expect("baseline JPEG");
+    bytes[sof + 5..sof + 7].copy_from_slice(&56826u16.to_be_bytes());
+    bytes[sof + 7..sof + 9].copy_from_slice(&308u16.to_be_bytes());
+    let dir = tempfile::tempdir().expect("temp dir");
+    let input = dir.path().join("damaged.jpg");
+    std::fs::write(&input, &bytes).expect("write");
+    let res = Command::cargo_bin("unshear")
+        .expect("binary")
+        .args(["estimate", "--json", "--quick"])
+        .arg(&input)
+        .assert()
+        .success();
+    let line = &common::json_lines(&res.get_output().stdout)[0];
+    let warnings: Vec<&str> = line["warnings"]
+        .as_array()
+        .expect("warnings")
+        .iter()
+        .filter_map(|w| w.as_str())
+        .collect();
+    assert!(
+        warnings.iter().any(|w| w.contains("without data")),
+        "{warnings:?}"
+    );
+    assert!(
+        warnings.iter().any(|w| w.contains("not searched")),
+        "{warnings:?}"
+    );
+    assert!(line["k"].is_null());
+}

@@ -125,7 +125,7 @@ fn no_shear_reason(report: &ImageReport) -> String {
     )
 }
 
-/// The estimate of a decoded input, with a warning first when the decode looks mostly missing
+/// The estimate of a decoded input, with a warning first when the decode is mostly without data
 /// ([`imageio::missing_data_warning`]).
 fn estimate_with_warnings(unshear: &Unshear, img: &image::DynamicImage) -> ImageReport {
     let mut report = unshear.estimate(img);
@@ -282,7 +282,10 @@ fn correct_one(
     };
     let nothing_to_apply = match options.region {
         Region::Image => options.k.is_none() && report.k.is_none(),
-        Region::Face => options.k.is_none() && report.faces.iter().all(|f| f.k.is_none()),
+        Region::Face => {
+            report.faces.is_empty()
+                || (options.k.is_none() && report.faces.iter().all(|f| f.k.is_none()))
+        }
     };
     if nothing_to_apply {
         return Ok(Corrected::NoFace(report));
