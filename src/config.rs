@@ -31,6 +31,15 @@ pub const MAX_SEARCH_SHEAR: f64 = 2.0;
 /// Largest |roll| (degrees, exclusive) a face search's turned views may take.
 pub const MAX_SEARCH_ROLL: f64 = 90.0;
 
+/// Default largest |shear| an estimate may have to be accepted ([`Config::max_shear`]).
+///
+/// A rolling-shutter shear is the motion during the sensor's readout: `|k| = 0.6` means the
+/// subject moved 60% of the frame's height sideways while it was read, beyond what usable photos
+/// show (the paper's real clips reach 0.54, the development set's shears go to 0.40 and the
+/// thorough search's views to 0.45). Beyond it an estimate is a false face or a failed
+/// location, and correcting by it would destroy the picture (docs/how-it-works.md).
+pub const DEFAULT_MAX_SHEAR: f64 = 0.6;
+
 /// How hard [`Unshear`](crate::Unshear) looks for faces.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum FaceSearch {
@@ -73,6 +82,11 @@ pub struct Config {
     pub search: FaceSearch,
     /// Confidence (0 to 1) below which a face's estimate is refused (`k: None`).
     pub min_confidence: f64,
+    /// Largest |shear| a face's estimate may have and be accepted: beyond it the estimate is
+    /// refused as physically implausible (`k: None`,
+    /// [`Refusal::ImplausibleShear`](crate::pipeline::Refusal::ImplausibleShear)); see
+    /// [`DEFAULT_MAX_SHEAR`].
+    pub max_shear: f64,
     /// How much work the landmark network may spend on each face.
     pub network_budget: Budget,
     /// Filters only: how many times the features are located again in the face de-sheared by
@@ -107,6 +121,7 @@ impl Default for Config {
             locator: Locator::Network,
             search: FaceSearch::Thorough,
             min_confidence: DEFAULT_MIN_CONFIDENCE,
+            max_shear: DEFAULT_MAX_SHEAR,
             network_budget: Budget::STILL,
             refinements: 0,
             shear_model: ShearModel::default(),
@@ -165,6 +180,15 @@ impl Config {
             return bad(format!(
                 "minimum confidence {} is outside 0 to 1",
                 self.min_confidence
+            ));
+        }
+        if !(self.max_shear.is_finite()
+            && self.max_shear > 0.0
+            && self.max_shear <= MAX_SEARCH_SHEAR)
+        {
+            return bad(format!(
+                "maximum shear {} must be above 0 and at most {MAX_SEARCH_SHEAR}",
+                self.max_shear
             ));
         }
         let b = &self.network_budget;
@@ -239,6 +263,14 @@ mod tests {
             },
             Config {
                 min_confidence: f64::NAN,
+                ..Config::default()
+            },
+            Config {
+                max_shear: 0.0,
+                ..Config::default()
+            },
+            Config {
+                max_shear: f64::INFINITY,
                 ..Config::default()
             },
             Config {

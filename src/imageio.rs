@@ -136,6 +136,41 @@ fn decode<R: BufRead + Seek>(
     Ok(img)
 }
 
+/// Share of an image's rows from which [`missing_data_warning`] reports a bottom without data:
+/// half a picture of it is no photo.
+pub const MISSING_ROWS_SHARE: f64 = 0.5;
+
+/// The row period [`missing_data_warning`] looks for: a JPEG decoder fills what a damaged file
+/// lacks by repeating its last blocks (or one flat value), so the rows repeat every 8 or 16
+/// (one MCU), which a photo's rows never do exactly over half the picture.
+pub const MISSING_ROWS_PERIOD: usize = 16;
+
+/// A warning when the bottom [`MISSING_ROWS_SHARE`] or more of `img`'s rows each repeat the
+/// row [`MISSING_ROWS_PERIOD`] above exactly, as a decoder leaves the rows a damaged file has
+/// no data for (image-rs fills them and reports success; a JPEG whose header declared 308x56826
+/// pixels but held the data of a 320x243 photo decoded 99.5% of its rows so): what is measured
+/// in such an image is only its top. `None` otherwise, and for images under 32 rows.
+pub fn missing_data_warning(img: &DynamicImage) -> Option<String> {
+    let h = img.height() as usize;
+    let bytes = img.as_bytes();
+    if h < 2 * MISSING_ROWS_PERIOD || bytes.is_empty() {
+        return None;
+    }
+    let row = bytes.len() / h;
+    let at = |y: usize| &bytes[y * row..(y + 1) * row];
+    let repeated = (MISSING_ROWS_PERIOD..h)
+        .rev()
+        .take_while(|&y| at(y) == at(y - MISSING_ROWS_PERIOD))
+        .count();
+    let share = repeated as f64 / h as f64;
+    (share >= MISSING_ROWS_SHARE).then(|| {
+        format!(
+            "the bottom {:.0}% of the rows ({repeated} of {h}) repeat without data, as a decoder fills what a damaged file lacks: only the top was measured",
+            share * 100.0
+        )
+    })
+}
+
 /// Luma (8-bit grey) copy of any image, as used by the face detector and feature finder
 /// (Rec. 709 weights, as `image` computes them; alpha ignored).
 pub fn to_gray(img: &DynamicImage) -> GrayImage {
@@ -716,6 +751,30 @@ mod tests {
             }
         }
         !crc
+    }
+
+    #[test]
+    fn a_decode_mostly_without_data_at_the_bottom_is_warned_about() {
+        // A photo whose bottom `filled` rows repeat an 8-row block, as a decoder fills them.
+        let photo = |filled: u32| {
+            DynamicImage::ImageRgb8(image::RgbImage::from_fn(30, 80, |x, y| {
+                let y = if y >= 80 - filled {
+                    80 - filled + y % 8
+                } else {
+                    y
+                };
+                image::Rgb([(x * 7 + y) as u8, (y * 5) as u8, 9])
+            }))
+        };
+        let w = missing_data_warning(&photo(60)).expect("three quarters filled");
+        assert!(w.contains("of 80"), "{w}");
+        assert!(missing_data_warning(&photo(60)).is_some());
+        assert!(missing_data_warning(&photo(30)).is_none(), "under half");
+        assert!(missing_data_warning(&photo(0)).is_none());
+        // One flat value is a fill too; a picture under 32 rows says nothing.
+        let flat = DynamicImage::ImageLuma8(GrayImage::new(10, 40));
+        assert!(missing_data_warning(&flat).is_some());
+        assert!(missing_data_warning(&DynamicImage::ImageLuma8(GrayImage::new(10, 31))).is_none());
     }
 
     #[test]

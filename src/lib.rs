@@ -76,7 +76,9 @@ pub mod warp;
 pub use config::{Config, FaceSearch, Locator};
 pub use error::{Error, Result};
 pub use geometry::{Point, Rect, Shear};
-pub use pipeline::{CorrectOptions, FaceReport, FaceStart, ImageReport, Models, Region, Unshear};
+pub use pipeline::{
+    CorrectOptions, FaceReport, FaceStart, ImageReport, Models, Refusal, Region, Unshear,
+};
 
 /// The README's Rust example, compiled as a doctest so it cannot go stale.
 #[cfg(doctest)]

@@ -57,7 +57,7 @@ fn estimate_json_has_the_documented_shape() {
     let obj = v.as_object().expect("object");
     let mut keys: Vec<&str> = obj.keys().map(String::as_str).collect();
     keys.sort();
-    assert_eq!(keys, ["faces", "file", "k"]);
+    assert_eq!(keys, ["faces", "faces_disagree", "file", "k", "warnings"]);
     assert!(v["file"]
         .as_str()
         .expect("file")
@@ -170,7 +170,11 @@ fn min_face_skips_smaller_boxes() {
 fn shear_hypotheses_choose_the_views_searched() {
     let dir = tempfile::tempdir().expect("temp");
     let img = distorted(dir.path(), 0.7);
-    let k_with = |options: &[&str]| estimate_json(&img, options)["k"].as_f64();
+    // 0.7 is beyond the default plausible bound (0.6): raised here, where the views are tested.
+    let k_with = |options: &[&str]| {
+        let with_bound: Vec<&str> = options.iter().copied().chain(["--max-shear=0.8"]).collect();
+        estimate_json(&img, &with_bound)["k"].as_f64()
+    };
     assert_eq!(k_with(&["--no-shear-search"]), None);
     assert_eq!(
         k_with(&[
@@ -188,6 +192,13 @@ fn shear_hypotheses_choose_the_views_searched() {
     );
     let k = k_with(&["--shear-hypotheses=0.7"]).expect("found in the de-sheared view");
     assert!((k - 0.7).abs() <= 0.05, "{k}");
+    // At the default bound the same face is measured and refused as implausible.
+    let refused = estimate_json(&img, &["--shear-hypotheses=0.7"]);
+    assert!(refused["k"].is_null(), "{refused}");
+    assert_eq!(
+        refused["faces"][0]["refused"], "implausible_shear",
+        "{refused}"
+    );
 }
 
 /// `--roll-hypotheses` sets the turned views: a head tilted clockwise by 45 degrees is beyond

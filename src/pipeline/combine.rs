@@ -69,14 +69,79 @@ pub(crate) fn measured_shear(found: &[(Rect, Option<FaceReport>)]) -> Option<f64
     combined_shear(&reports)
 }
 
-/// The image's shear from its faces' accepted estimates: their confidence-weighted median,
-/// robust to a minority of faces whose features were mislocated and led by the faces the
-/// estimator trusts most. Faces with refused estimates do not count; `None` when no face has an
-/// accepted estimate.
-pub fn combined_shear(faces: &[FaceReport]) -> Option<f64> {
-    weighted_median(
-        faces
+/// Each face's stated uncertainty: the half-width of the window its estimate and the truth are
+/// expected in. The confidence is a model of the chance that the estimate is within 0.10 of the
+/// truth, so two accepted faces whose estimates are more than twice this apart cannot both be
+/// right.
+pub const FACE_UNCERTAINTY: f64 = 0.10;
+
+/// The image's shear from its faces, and which faces disagree with it.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Consensus {
+    /// The confidence-weighted median of the consistent majority, `None` when no face has an
+    /// accepted estimate or no consistent group outweighs the rest.
+    pub k: Option<f64>,
+    /// The faces (indices) with accepted estimates outside the majority.
+    pub outvoted: Vec<usize>,
+    /// Whether faces had accepted estimates but no consistent group outweighed the others.
+    pub no_majority: bool,
+}
+
+/// The consistent majority of the faces' accepted estimates: the estimates that fit in one
+/// window of width `2 FACE_UNCERTAINTY` (all within [`FACE_UNCERTAINTY`] of one shear) with
+/// the largest total confidence. When that total is more than half of all accepted faces'
+/// confidence, the image's shear is the group's confidence-weighted median and the faces outside
+/// it are outvoted; otherwise the faces disagree and the image gets no shear (a wrong correction
+/// is worse than none). One face, or faces that all agree, is its own majority.
+pub fn consensus(faces: &[FaceReport]) -> Consensus {
+    let accepted: Vec<(usize, f64, f64)> = faces
+        .iter()
+        .enumerate()
+        .filter_map(|(i, f)| Some((i, f.k?, f.confidence.max(1e-6))))
+        .filter(|(_, k, w)| k.is_finite() && w.is_finite())
+        .collect();
+    if accepted.is_empty() {
+        return Consensus::default();
+    }
+    let total: f64 = accepted.iter().map(|a| a.2).sum();
+    let window = 2.0 * FACE_UNCERTAINTY;
+    // Every window worth testing starts at one of the estimates.
+    let members = |lo: f64| {
+        accepted
             .iter()
-            .filter_map(|f| Some((f.k?, f.confidence.max(1e-6)))),
-    )
+            .filter(move |a| a.1 >= lo && a.1 <= lo + window)
+            .copied()
+    };
+    let best = accepted
+        .iter()
+        .map(|a| (a.1, members(a.1).map(|m| m.2).sum::<f64>()))
+        .max_by(|a, b| a.1.total_cmp(&b.1));
+    let Some((lo, weight)) = best else {
+        return Consensus::default();
+    };
+    if weight <= 0.5 * total {
+        return Consensus {
+            k: None,
+            outvoted: Vec::new(),
+            no_majority: true,
+        };
+    }
+    let group: Vec<(usize, f64, f64)> = members(lo).collect();
+    Consensus {
+        k: weighted_median(group.iter().map(|m| (m.1, m.2))),
+        outvoted: accepted
+            .iter()
+            .filter(|a| !group.iter().any(|m| m.0 == a.0))
+            .map(|a| a.0)
+            .collect(),
+        no_majority: false,
+    }
+}
+
+/// The image's shear from its faces' accepted estimates ([`consensus`]): the confidence-weighted
+/// median of the consistent majority, robust to a minority of faces whose features were
+/// mislocated. Faces with refused estimates do not count; `None` when no face has an accepted
+/// estimate or the faces disagree with no majority.
+pub fn combined_shear(faces: &[FaceReport]) -> Option<f64> {
+    consensus(faces).k
 }

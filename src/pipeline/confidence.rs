@@ -5,7 +5,7 @@ use crate::detect::boxes::EYE_DISTANCE_PER_BOX_WIDTH;
 use crate::estimate::FaceEstimate;
 use crate::filters::FilterType;
 use crate::fitted;
-use crate::geometry::Rect;
+use crate::geometry::{Point, Rect};
 use crate::locate::filters::FacePoints;
 use crate::locate::network::LocatedFace;
 
@@ -154,6 +154,197 @@ pub fn network_confidence(found: &LocatedFace, face_box: Rect, model: &Confidenc
     }
 }
 
+/// Why the ruled checks of [`plausibility`] doubt a face.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Doubt {
+    /// The face box lies largely outside the image, or a located point does.
+    OutsideImage,
+    /// The located points are not laid out as a face's.
+    NotFaceLike,
+    /// A face both foreshortened (nose drawn up towards the eyes: a head tipped back or
+    /// forward) and rolled, where the shear read from it is unreliable
+    /// ([`FORESHORTENED_ROLL_LIMIT`]).
+    UnreliablePose,
+}
+
+/// Largest share of a face box that may lie outside the image with no doubt: faces cut by the
+/// border keep their box partly outside, and beyond half of it the face is mostly not seen.
+/// Between this and [`BOX_OUTSIDE_REFUSED`] the confidence falls linearly to 0. Measured on the
+/// development eval (docs/accuracy.md#gross-errors): no face found there has more than 0.16 of
+/// its box outside.
+pub const BOX_OUTSIDE_DOUBTED: f64 = 0.25;
+
+/// Share of a face box outside the image from which the face is refused (see
+/// [`BOX_OUTSIDE_DOUBTED`]).
+pub const BOX_OUTSIDE_REFUSED: f64 = 0.5;
+
+/// How far (pixels) a located eye, nose or mouth may lie outside the image: a point that is not
+/// in the picture was guessed, not seen.
+pub const POINT_OUTSIDE_MARGIN: f64 = 1.0;
+
+/// The range of the located eye distance over the face box width: the detector's boxes put
+/// 0.381 (docs/how-it-works.md); the development faces range from about 0.25 to 0.55, and a
+/// walk of crops that ended on something far smaller or larger than the box it started from
+/// found no face of that box. Development faces: 0.20-0.63.
+pub const EYE_BOX_RATIO_RANGE: (f64, f64) = (0.15, 0.75);
+
+/// The range of the nose point's drop below the eye line, in eye distances, in the face's own
+/// frame (shear and roll undone): development faces measure 0.44-1.12 (median 0.77,
+/// docs/accuracy.md#gross-errors), with a margin for faces looking up or down.
+pub const NOSE_DROP_RANGE: (f64, f64) = (0.3, 1.3);
+
+/// The range of the mouth's drop below the eye line, in eye distances (development faces
+/// 0.66-1.56, median 1.10; see [`NOSE_DROP_RANGE`]).
+pub const MOUTH_DROP_RANGE: (f64, f64) = (0.5, 1.75);
+
+/// Largest sideways offset of the nose or the mouth from the eyes' midpoint, in eye distances,
+/// in the face's own frame (development faces: at most 0.48, from turned heads).
+pub const MAX_SIDEWAYS: f64 = 0.6;
+
+/// The nose's usual drop below the eye line, in eye distances: the development faces' median.
+pub const TYPICAL_NOSE_DROP: f64 = 0.77;
+
+/// Largest foreshortening-times-roll a face may show, `(TYPICAL_NOSE_DROP - nose drop) x |roll
+/// in degrees|`: a head tipped back or forward draws its nose up towards the eyes, and when it
+/// is also rolled the network misreads the foreshortening as shear, confidently. On the first
+/// 300 development faces at k = 0 and +-0.40, the 8 accepted estimates more than 0.15 off that
+/// the shear bound leaves (4 faces) all score 2.86 or more, and 3 of the 873 others do
+/// (docs/accuracy.md#gross-errors).
+pub const FORESHORTENED_ROLL_LIMIT: f64 = 2.8;
+
+/// Where a face's nose and mouth lie from its eyes' midpoint in the face's own frame (the
+/// measured shear and roll undone), in eye distances as the image shows them: `x` to the
+/// image's right, `y` down.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FaceLayout {
+    /// The nose point.
+    pub nose: Point,
+    /// The mouth centre.
+    pub mouth: Point,
+}
+
+/// The layout of located points under shear `k` and roll `roll` (radians): the image of an
+/// upright face is `S(k) R(roll)` of it, so the face's frame is `R(-roll) S(-k)` of the image
+/// about the eyes' midpoint. `None` when the eyes coincide or a value is not finite.
+pub fn face_layout(
+    right_eye: Point,
+    left_eye: Point,
+    nose: Point,
+    mouth: Point,
+    k: f64,
+    roll: f64,
+) -> Option<FaceLayout> {
+    let d = right_eye.distance(left_eye);
+    if !(d > 0.0 && d.is_finite() && k.is_finite() && roll.is_finite()) {
+        return None;
+    }
+    let mid = right_eye.midpoint(left_eye);
+    let (s, c) = roll.sin_cos();
+    // In eye distances as the image shows them (a rolled face's shear changes its eye distance
+    // by a few per cent: the ranges were measured this way).
+    let frame = |p: Point| {
+        let (x, y) = (p.x - mid.x, p.y - mid.y);
+        let x = x - k * y;
+        // R(-roll): the roll turns the subject's left eye (image right) down.
+        Point::new((c * x + s * y) / d, (-s * x + c * y) / d)
+    };
+    let layout = FaceLayout {
+        nose: frame(nose),
+        mouth: frame(mouth),
+    };
+    [layout.nose.x, layout.nose.y, layout.mouth.x, layout.mouth.y]
+        .iter()
+        .all(|v| v.is_finite())
+        .then_some(layout)
+}
+
+/// The share of `b` outside a `width` x `height` image (0 inside, 1 wholly outside or empty).
+pub fn box_outside_share(b: Rect, width: u32, height: u32) -> f64 {
+    let image = Rect::new(0.0, 0.0, f64::from(width), f64::from(height));
+    let area = b.area();
+    if !(area > 0.0 && area.is_finite()) {
+        return 1.0;
+    }
+    let inside = b.intersection(&image).map_or(0.0, |i| i.area());
+    (1.0 - inside / area).clamp(0.0, 1.0)
+}
+
+/// What the ruled checks make of one face's located points.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Plausibility {
+    /// The factor (0 to 1) the learned confidence is multiplied by.
+    pub factor: f64,
+    /// Why the factor is below 1, if it is.
+    pub doubt: Option<Doubt>,
+}
+
+/// The located points of one face.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LocatedPoints {
+    /// The detector's box.
+    pub face_box: Rect,
+    /// Subject's right eye (image left).
+    pub right_eye: Point,
+    /// Subject's left eye (image right).
+    pub left_eye: Point,
+    /// The nose point, if located.
+    pub nose: Option<Point>,
+    /// The mouth centre, if located.
+    pub mouth: Option<Point>,
+    /// The measured shear.
+    pub k: f64,
+    /// The measured roll, radians.
+    pub roll: f64,
+}
+
+/// Ruled checks of what the learned confidence cannot see, as a factor on it: the logistic
+/// models were fitted on real faces inside the picture, so they say nothing about a box hanging
+/// off the image or points laid out like no face. Each check is a range measured on the
+/// development faces (see the constants); outside it the face is refused (factor 0), except for
+/// the box's share outside the image, which lowers the factor linearly between
+/// [`BOX_OUTSIDE_DOUBTED`] and [`BOX_OUTSIDE_REFUSED`].
+pub fn plausibility(p: &LocatedPoints, width: u32, height: u32) -> Plausibility {
+    let refused = |doubt| Plausibility {
+        factor: 0.0,
+        doubt: Some(doubt),
+    };
+    let (w, h) = (f64::from(width), f64::from(height));
+    let m = POINT_OUTSIDE_MARGIN;
+    let inside = |q: Point| q.x >= -m && q.y >= -m && q.x <= w + m && q.y <= h + m;
+    let points = [Some(p.right_eye), Some(p.left_eye), p.nose, p.mouth];
+    if points.iter().flatten().any(|&q| !inside(q)) {
+        return refused(Doubt::OutsideImage);
+    }
+    let ratio = p.right_eye.distance(p.left_eye) / p.face_box.width;
+    if !(EYE_BOX_RATIO_RANGE.0..=EYE_BOX_RATIO_RANGE.1).contains(&ratio) {
+        return refused(Doubt::NotFaceLike);
+    }
+    if let (Some(nose), Some(mouth)) = (p.nose, p.mouth) {
+        let Some(l) = face_layout(p.right_eye, p.left_eye, nose, mouth, p.k, p.roll) else {
+            return refused(Doubt::NotFaceLike);
+        };
+        let face_like = (NOSE_DROP_RANGE.0..=NOSE_DROP_RANGE.1).contains(&l.nose.y)
+            && (MOUTH_DROP_RANGE.0..=MOUTH_DROP_RANGE.1).contains(&l.mouth.y)
+            && l.mouth.y > l.nose.y
+            && l.nose.x.abs() <= MAX_SIDEWAYS
+            && l.mouth.x.abs() <= MAX_SIDEWAYS;
+        if !face_like {
+            return refused(Doubt::NotFaceLike);
+        }
+        let foreshortened = (TYPICAL_NOSE_DROP - l.nose.y).max(0.0) * p.roll.to_degrees().abs();
+        if foreshortened >= FORESHORTENED_ROLL_LIMIT {
+            return refused(Doubt::UnreliablePose);
+        }
+    }
+    let outside = box_outside_share(p.face_box, width, height);
+    let factor = ((BOX_OUTSIDE_REFUSED - outside) / (BOX_OUTSIDE_REFUSED - BOX_OUTSIDE_DOUBTED))
+        .clamp(0.0, 1.0);
+    Plausibility {
+        factor,
+        doubt: (factor < 1.0).then_some(Doubt::OutsideImage),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -205,5 +396,108 @@ mod tests {
             assert!(clear > faint, "{kind:?}: mouth PSR {clear} vs {faint}");
             assert!(clear > split, "{kind:?}: disagreement {clear} vs {split}");
         }
+    }
+
+    /// An upright face with eyes 40 px apart about (100, 100), nose 0.7 and mouth 1.15 eye
+    /// distances below, sheared by `k` and rolled by `roll` about the eyes' midpoint.
+    fn posed(k: f64, roll: f64) -> LocatedPoints {
+        let mid = Point::new(100.0, 100.0);
+        let (s, c) = f64::sin_cos(roll);
+        let pose = |x: f64, y: f64| {
+            let (x, y) = (c * x - s * y, s * x + c * y);
+            Point::new(mid.x + x + k * y, mid.y + y)
+        };
+        LocatedPoints {
+            face_box: Rect::new(48.0, 70.0, 105.0, 105.0),
+            right_eye: pose(-20.0, 0.0),
+            left_eye: pose(20.0, 0.0),
+            nose: Some(pose(0.0, 28.0)),
+            mouth: Some(pose(0.0, 46.0)),
+            k,
+            roll,
+        }
+    }
+
+    #[test]
+    fn the_layout_is_read_in_the_faces_own_frame() {
+        for (k, roll) in [(0.0, 0.0), (0.4, 0.0), (-0.3, 0.3), (0.2, -0.5)] {
+            let p = posed(k, roll);
+            let l = face_layout(
+                p.right_eye,
+                p.left_eye,
+                p.nose.unwrap_or_default(),
+                p.mouth.unwrap_or_default(),
+                k,
+                roll,
+            )
+            .expect("layout");
+            // Scaled by the eye distance the image shows: 40 px unless shear meets roll.
+            let scale = 40.0 / p.right_eye.distance(p.left_eye);
+            assert!(
+                l.nose.x.abs() < 1e-9 && (l.nose.y - 0.7 * scale).abs() < 1e-9,
+                "{l:?}"
+            );
+            let mouth = 1.15 * scale;
+            assert!(
+                l.mouth.x.abs() < 1e-9 && (l.mouth.y - mouth).abs() < 1e-9,
+                "{l:?}"
+            );
+            assert!((scale - 1.0).abs() < 0.1 && (k * roll != 0.0 || scale == 1.0));
+        }
+    }
+
+    #[test]
+    fn ruled_checks_refuse_what_the_learned_confidence_cannot_see() {
+        let ok = posed(0.3, 0.2);
+        assert_eq!(
+            plausibility(&ok, 300, 300),
+            Plausibility {
+                factor: 1.0,
+                doubt: None
+            }
+        );
+        // An eye outside the picture was guessed, not seen.
+        let out = plausibility(&ok, 115, 300);
+        assert_eq!((out.factor, out.doubt), (0.0, Some(Doubt::OutsideImage)));
+        // The box partly outside: from a quarter of it, less and less trusted, nothing from half.
+        let shifted = |x: f64| LocatedPoints {
+            face_box: Rect::new(x, 70.0, 105.0, 105.0),
+            ..ok
+        };
+        assert_eq!(plausibility(&shifted(-20.0), 300, 300).factor, 1.0);
+        let third = plausibility(&shifted(-105.0 / 3.0), 300, 300);
+        assert!(third.factor > 0.0 && third.factor < 1.0, "{third:?}");
+        assert_eq!(third.doubt, Some(Doubt::OutsideImage));
+        assert_eq!(plausibility(&shifted(-53.0), 300, 300).factor, 0.0);
+        // Points laid out like no face: the nose above the eyes, the mouth far to one side,
+        // eyes a tenth of the box apart.
+        let nose_up = LocatedPoints {
+            nose: Some(Point::new(100.0, 90.0)),
+            ..posed(0.0, 0.0)
+        };
+        let mouth_aside = LocatedPoints {
+            mouth: Some(Point::new(140.0, 146.0)),
+            ..posed(0.0, 0.0)
+        };
+        let small_eyes = LocatedPoints {
+            face_box: Rect::new(0.0, 0.0, 400.0, 400.0),
+            ..posed(0.0, 0.0)
+        };
+        for p in [nose_up, mouth_aside, small_eyes] {
+            let v = plausibility(&p, 500, 500);
+            assert_eq!(
+                (v.factor, v.doubt),
+                (0.0, Some(Doubt::NotFaceLike)),
+                "{p:?}"
+            );
+        }
+        assert_eq!(
+            box_outside_share(Rect::new(-10.0, 0.0, 20.0, 10.0), 50, 50),
+            0.5
+        );
+        assert_eq!(
+            box_outside_share(Rect::new(0.0, 0.0, 0.0, 10.0), 50, 50),
+            1.0
+        );
     }
 }

@@ -5,7 +5,10 @@ use std::cell::RefCell;
 
 use image::GrayImage;
 
-use super::report::FaceReport;
+use super::confidence::{
+    confidence, network_confidence, plausibility, ConfidenceModel, Doubt, LocatedPoints,
+};
+use super::report::{FaceReport, Refusal};
 use super::search::Detection;
 use super::Unshear;
 use crate::config::Locator;
@@ -15,7 +18,6 @@ use crate::filters::Correlator;
 use crate::geometry::{Point, Rect};
 use crate::locate::filters::{nostril_band, FacePoints, FeatureLocator, NormalizedFace};
 use crate::locate::network::{self, Budget, LandmarkNet, LocatedFace};
-use crate::pipeline::confidence::{confidence, network_confidence, ConfidenceModel};
 
 /// How far (degrees) the roll measured on a face may be from the roll its features were searched
 /// at before the filters search it again in the face turned upright by it: the filters were
@@ -205,7 +207,17 @@ impl Unshear {
             points.mouth_psr,
         ];
         let model = ConfidenceModel::for_filters(self.filters.kind);
-        let confidence = confidence(&points, &estimate, face_box, &model);
+        let learned = confidence(&points, &estimate, face_box, &model);
+        let located = LocatedPoints {
+            face_box,
+            right_eye: points.right_eye,
+            left_eye: points.left_eye,
+            nose: points.nose_tip,
+            mouth: points.mouth,
+            k: estimate.k,
+            roll: estimate.roll,
+        };
+        let (k, confidence, refused) = self.verdict(gray, &located, learned);
         Some(FaceReport {
             face_box,
             right_eye: points.right_eye,
@@ -213,8 +225,10 @@ impl Unshear {
             right_nostril: points.right_nostril,
             left_nostril: points.left_nostril,
             mouth: points.mouth,
-            k: (confidence >= self.config.min_confidence).then_some(estimate.k),
+            k,
             k_measured: estimate.k,
+            refused,
+            outvoted: false,
             k_nose: estimate.k_nose,
             k_mouth: estimate.k_mouth,
             nose_tip: points.nose_tip,
@@ -282,7 +296,17 @@ impl Unshear {
             Point::new(nostril_mid.x - mid.x, nostril_mid.y - mid.y),
         )
         .map(|r| r.k);
-        let confidence = network_confidence(&found, face_box, &ConfidenceModel::NETWORK);
+        let learned = network_confidence(&found, face_box, &ConfidenceModel::NETWORK);
+        let located = LocatedPoints {
+            face_box,
+            right_eye: found.right_eye,
+            left_eye: found.left_eye,
+            nose: Some(found.nose),
+            mouth: Some(found.mouth),
+            k: found.k,
+            roll: found.roll,
+        };
+        let (k, confidence, refused) = self.verdict(gray, &located, learned);
         Some(FaceReport {
             face_box,
             right_eye: found.right_eye,
@@ -290,8 +314,10 @@ impl Unshear {
             right_nostril: nostrils[0].0,
             left_nostril: nostrils[1].0,
             mouth: Some(found.mouth),
-            k: (confidence >= self.config.min_confidence).then_some(found.k),
+            k,
             k_measured: found.k,
+            refused,
+            outvoted: false,
             k_nose: k_nostrils,
             k_mouth: found.k_mouth,
             nose_tip: Some(found.nose),
@@ -306,6 +332,36 @@ impl Unshear {
             spread: Some(found.spread),
             face_score: Some(found.face),
         })
+    }
+
+    /// Whether a face's estimate is accepted: its confidence (the learned one times the ruled
+    /// [`plausibility`]) and the estimate, or `None` and why. An estimate beyond
+    /// [`Config::max_shear`](crate::Config::max_shear) is refused whatever its confidence:
+    /// no camera makes it in a usable picture, and correcting by it would destroy the photo.
+    fn verdict(
+        &self,
+        gray: &GrayImage,
+        p: &LocatedPoints,
+        learned: f64,
+    ) -> (Option<f64>, f64, Option<Refusal>) {
+        let ruled = plausibility(p, gray.width(), gray.height());
+        let confidence = learned * ruled.factor;
+        let min = self.config.min_confidence;
+        let refused = if !(p.k.is_finite() && p.k.abs() <= self.config.max_shear) {
+            Some(Refusal::ImplausibleShear)
+        } else if confidence >= min && (confidence > 0.0 || min == 0.0) && ruled.factor > 0.0 {
+            None
+        } else if learned >= min {
+            Some(match ruled.doubt {
+                Some(Doubt::OutsideImage) => Refusal::OutsideImage,
+                Some(Doubt::NotFaceLike) => Refusal::NotFaceLike,
+                Some(Doubt::UnreliablePose) => Refusal::UnreliablePose,
+                None => Refusal::LowConfidence,
+            })
+        } else {
+            Some(Refusal::LowConfidence)
+        };
+        (refused.is_none().then_some(p.k), confidence, refused)
     }
 
     /// The paper's nostrils below the network's eyes, in the face de-sheared by its estimate.

@@ -30,13 +30,13 @@ mod tests;
 
 use image::{DynamicImage, GrayImage};
 
-pub use combine::combined_shear;
+pub use combine::{combined_shear, consensus, Consensus, FACE_UNCERTAINTY};
 pub use correct::FACE_REGION_MARGIN;
 pub use face::FaceStart;
-pub use report::{CorrectOptions, FaceReport, ImageReport, Region};
+pub use report::{CorrectOptions, FaceReport, ImageReport, Refusal, Region};
 pub use search::{
-    Detection, DEFAULT_ROLL_HYPOTHESES, DEFAULT_SHEAR_HYPOTHESES, THOROUGH_ROLL_HYPOTHESES,
-    THOROUGH_SHEAR_HYPOTHESES, WEAK_BOX_MIN_WIDTH,
+    Detection, DEFAULT_ROLL_HYPOTHESES, DEFAULT_SHEAR_HYPOTHESES, MAX_VIEW_PIXELS_RATIO,
+    THOROUGH_ROLL_HYPOTHESES, THOROUGH_SHEAR_HYPOTHESES, WEAK_BOX_MIN_WIDTH,
 };
 
 use crate::config::Config;
@@ -187,14 +187,20 @@ impl Unshear {
 
     /// [`Self::estimate`] on a greyscale image.
     pub fn estimate_gray(&self, gray: &GrayImage) -> ImageReport {
-        let faces: Vec<FaceReport> = self
+        let mut faces: Vec<FaceReport> = self
             .detect_and_estimate(gray)
             .into_iter()
             .filter_map(|(_, face)| face)
             .collect();
+        let consensus = consensus(&faces);
+        for &i in &consensus.outvoted {
+            faces[i].outvoted = true;
+        }
         ImageReport {
-            k: combined_shear(&faces),
+            k: consensus.k,
             faces,
+            faces_disagree: consensus.no_majority,
+            warnings: self.shape_warnings(gray.width(), gray.height()),
             width: gray.width(),
             height: gray.height(),
         }
@@ -343,6 +349,23 @@ impl Unshear {
             }
         }
         most_confident_of_overlapping(all)
+    }
+
+    /// Says so when the image's shape keeps some of the search's views from being searched
+    /// (see [`MAX_VIEW_PIXELS_RATIO`]): faces sheared or rolled beyond what the cascade
+    /// tolerates may then be missed.
+    fn shape_warnings(&self, width: u32, height: u32) -> Vec<String> {
+        let skipped = self
+            .every_view(false)
+            .iter()
+            .filter(|v| !search::view_is_bounded(width, height, v.k, v.roll))
+            .count();
+        if skipped == 0 {
+            return Vec::new();
+        }
+        vec![format!(
+            "{skipped} de-sheared or turned views not searched: the image ({width}x{height}) is too tall or too wide for them to stay within {MAX_VIEW_PIXELS_RATIO} times its pixels"
+        )]
     }
 
     /// The greyscale image the detector and the filters work on.

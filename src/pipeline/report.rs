@@ -8,6 +8,40 @@ use crate::config::Locator;
 use crate::geometry::{Point, Rect};
 use crate::warp::{Canvas, Interpolation};
 
+/// Why a face's estimate was refused (its `k` is `None`, [`FaceReport::k_measured`] kept).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Refusal {
+    /// The learned confidence is below the threshold
+    /// ([`Config::min_confidence`](crate::Config::min_confidence)).
+    LowConfidence,
+    /// |k| beyond [`Config::max_shear`](crate::Config::max_shear), or not finite: no real
+    /// camera produces it in a usable picture.
+    ImplausibleShear,
+    /// The face box or its located points lie largely outside the image: what is measured there
+    /// is not seen (see [`pipeline::confidence::plausibility`](crate::pipeline::confidence::plausibility)).
+    OutsideImage,
+    /// The located points are not laid out as a face's are (eye distance against the box, the
+    /// nose and mouth below the eyes), so whatever they found is not a face.
+    NotFaceLike,
+    /// A face both foreshortened and rolled, whose shear reading is unreliable (see
+    /// [`FORESHORTENED_ROLL_LIMIT`](crate::pipeline::confidence::FORESHORTENED_ROLL_LIMIT)).
+    UnreliablePose,
+}
+
+impl Refusal {
+    /// The name printed in the JSON output (`"low_confidence"`, ...).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::LowConfidence => "low_confidence",
+            Self::ImplausibleShear => "implausible_shear",
+            Self::OutsideImage => "outside_image",
+            Self::NotFaceLike => "not_face_like",
+            Self::UnreliablePose => "unreliable_pose",
+        }
+    }
+}
+
 /// What was found for one face.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct FaceReport {
@@ -28,6 +62,13 @@ pub struct FaceReport {
     pub k: Option<f64>,
     /// The shear measured, whether or not it was refused.
     pub k_measured: f64,
+    /// Why `k` is `None` (`None` when it was accepted).
+    pub refused: Option<Refusal>,
+    /// Whether the image's shear was taken from other faces that agree with each other and
+    /// outweigh this one's accepted estimate, which disagrees with them beyond both
+    /// estimates' uncertainty (see [`combined_shear`](crate::pipeline::combined_shear)). Its
+    /// own `k` is kept: `--region face` corrects it by it.
+    pub outvoted: bool,
     /// The nose axis's own estimate (shear-and-roll model), if usable.
     pub k_nose: Option<f64>,
     /// The mouth axis's own estimate (shear-and-roll model), if usable.
@@ -66,10 +107,17 @@ pub struct FaceReport {
 /// What was found in one image.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ImageReport {
-    /// The image's shear: the median of the faces' estimates, `None` without a usable face.
+    /// The image's shear: the confidence-weighted median of the consistent majority of the
+    /// faces' accepted estimates, `None` without one.
     pub k: Option<f64>,
     /// Every face with an estimate.
     pub faces: Vec<FaceReport>,
+    /// Whether faces had accepted estimates that disagree beyond their uncertainty with no
+    /// consistent majority, so the image has no shear ([`consensus`](crate::pipeline::consensus)).
+    pub faces_disagree: bool,
+    /// What the caller should know about this result (a search cut short by the image's shape,
+    /// say), one sentence each.
+    pub warnings: Vec<String>,
     /// Input width, pixels.
     pub width: u32,
     /// Input height, pixels.

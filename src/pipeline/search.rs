@@ -67,6 +67,31 @@ pub(crate) const THOROUGH_VIEW_MIN_FACE: u32 = 60;
 /// still in parallel), to bound memory: a turned view of a 12 MP photo is about 35 MB.
 pub(crate) const PARALLEL_VIEWS_MAX_PIXELS: u64 = 4_000_000;
 
+/// Most pixels a de-sheared or turned view may have, as a multiple of the input's: beyond it the
+/// view is mostly padding (a very tall or very wide image de-sheared or turned), and searching
+/// it would cost time and memory out of all proportion to the picture (a 308x56826 image
+/// de-sheared by 0.3 is a 1-gigapixel view). Ordinary shapes stay below it: a 9:16 portrait
+/// de-sheared by 0.45 and turned by 45 degrees is 3.6 times its input, a 4:1 panorama turned by
+/// 45 degrees 3.1 times (docs/performance.md#extreme-shapes).
+pub const MAX_VIEW_PIXELS_RATIO: f64 = 4.0;
+
+/// The pixels of the view of a `width` x `height` image de-sheared by `k` onto a widened canvas
+/// and then turned by `roll` radians (the bounding box of the turned canvas).
+pub(crate) fn view_pixels(width: u32, height: u32, k: f64, roll: f64) -> f64 {
+    let (w, h) = (f64::from(width), f64::from(height));
+    let w = w + k.abs() * h;
+    let (s, c) = (roll.sin().abs(), roll.cos().abs());
+    (w * c + h * s) * (w * s + h * c)
+}
+
+/// Whether the view de-sheared by `k` and turned by `roll` stays within
+/// [`MAX_VIEW_PIXELS_RATIO`] of the input's pixels.
+pub(crate) fn view_is_bounded(width: u32, height: u32, k: f64, roll: f64) -> bool {
+    let input = f64::from(width) * f64::from(height);
+    (k == 0.0 && roll == 0.0)
+        || view_pixels(width, height, k, roll) <= MAX_VIEW_PIXELS_RATIO * input
+}
+
 /// The raw hits a box of the thorough search needs: one, as the landmark network's face score,
 /// not the detector's neighbour count, decides what is a face.
 pub(crate) const THOROUGH_MIN_NEIGHBORS: u32 = 1;
@@ -338,6 +363,10 @@ impl Unshear {
         k: f64,
         roll: f64,
     ) -> Vec<Detection> {
+        if !view_is_bounded(gray.width(), gray.height(), k, roll) {
+            // Mostly padding (see MAX_VIEW_PIXELS_RATIO): not searched.
+            return Vec::new();
+        }
         let shear = Shear::about_middle(k, gray.height());
         // No shear: the image itself (the warp would be an exact copy, with the default
         // placement: `warp`'s test `zero_shear_is_identity_for_every_variant`).

@@ -1,4 +1,4 @@
-use super::combine::{combined_shear, most_confident_of_overlapping};
+use super::combine::{combined_shear, consensus, most_confident_of_overlapping};
 use super::proposals::{proposal_detection, proposal_eyes, proposal_is_new, proposal_shows};
 use super::search::{
     overlapping_groups, strongest_of_overlapping, tries_of_group, View, THOROUGH_BOX_TRIES,
@@ -26,6 +26,8 @@ fn face(k: Option<f64>, confidence: f64) -> FaceReport {
         mouth: None,
         k,
         k_measured: k.unwrap_or(0.9),
+        refused: k.is_none().then_some(super::Refusal::LowConfidence),
+        outvoted: false,
         k_nose: None,
         k_mouth: None,
         nose_tip: None,
@@ -422,27 +424,39 @@ fn one_face_found_in_two_boxes_is_reported_once() {
 }
 
 #[test]
-fn combined_shear_is_a_confidence_weighted_median_of_accepted_faces() {
+fn combined_shear_is_the_weighted_median_of_the_consistent_majority() {
     assert_eq!(combined_shear(&[]), None);
     assert_eq!(combined_shear(&[face(None, 0.9)]), None);
-    // Equal weights: the ordinary median.
+    // Equal weights within each other's uncertainty (0.2 apart): the ordinary median.
     let even = [face(Some(0.1), 0.5), face(Some(0.3), 0.5)];
     assert!((combined_shear(&even).expect("k") - 0.2).abs() < 1e-12);
-    // One confident face outweighs two doubtful ones that agree with each other.
+    // One confident face outweighs two doubtful ones that agree with each other, which are
+    // outvoted; a refused face does not vote.
     let faces = [
         face(Some(0.40), 0.9),
         face(Some(0.05), 0.2),
         face(Some(0.06), 0.2),
         face(None, 1.0),
     ];
-    assert_eq!(combined_shear(&faces), Some(0.40));
-    // Three similar weights: the middle value, whatever the outlier.
+    let c = consensus(&faces);
+    assert_eq!((c.k, c.outvoted.as_slice()), (Some(0.40), &[1, 2][..]));
+    // Two agreeing faces outvote a third far off, whatever its value.
     let faces = [
         face(Some(0.2), 0.5),
         face(Some(0.22), 0.6),
         face(Some(-3.0), 0.55),
     ];
-    assert_eq!(combined_shear(&faces), Some(0.2));
+    let c = consensus(&faces);
+    assert_eq!((c.k, c.outvoted.as_slice()), (Some(0.22), &[2][..]));
+    assert!(!c.no_majority);
+    // Two equally confident faces that cannot both be right: no shear, nobody outvoted.
+    let split = [face(Some(0.0), 0.5), face(Some(0.3), 0.5)];
+    let c = consensus(&split);
+    assert_eq!((c.k, c.outvoted.len(), c.no_majority), (None, 0, true));
+    // Just beyond twice the uncertainty is a disagreement; just within is not.
+    let u = super::FACE_UNCERTAINTY;
+    assert!(combined_shear(&[face(Some(0.0), 0.5), face(Some(2.0 * u + 1e-3), 0.5)]).is_none());
+    assert!(combined_shear(&[face(Some(0.0), 0.5), face(Some(2.0 * u - 1e-3), 0.5)]).is_some());
 }
 
 #[test]

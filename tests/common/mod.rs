@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 /// The keys of a face object in the `--json` output of `estimate` and `video`, sorted.
 #[allow(dead_code)] // Not every test file uses every helper.
-pub const FACE_JSON_KEYS: [&str; 11] = [
+pub const FACE_JSON_KEYS: [&str; 13] = [
     "box",
     "confidence",
     "k",
@@ -13,6 +13,8 @@ pub const FACE_JSON_KEYS: [&str; 11] = [
     "left_nostril",
     "mouth",
     "nose",
+    "outvoted",
+    "refused",
     "right_eye",
     "right_nostril",
     "roll",

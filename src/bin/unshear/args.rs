@@ -101,6 +101,10 @@ pub struct ModelArgs {
     /// confidence (0 to 1).
     #[arg(help_heading = "Correction", long, value_name = "C", default_value_t = unshear::config::DEFAULT_MIN_CONFIDENCE)]
     pub min_confidence: f64,
+    /// Refuse a face's estimate whose |k| is beyond this (report `"k": null`, `"refused":
+    /// "implausible_shear"`): rolling-shutter shears of usable photos stay well below it.
+    #[arg(help_heading = "Correction", hide_short_help = true, long, value_name = "K", default_value_t = unshear::config::DEFAULT_MAX_SHEAR)]
+    pub max_shear: f64,
     /// Detect in the image as it is only (the paper's single pass): no de-sheared or turned
     /// retries when no face is found.
     #[arg(help_heading = "Face search", hide_short_help = true, long)]

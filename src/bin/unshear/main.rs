@@ -28,7 +28,7 @@ use models::load_models;
 use report::JsonLine;
 use unshear::filters::FilterType;
 use unshear::imageio::{self, WriteOptions};
-use unshear::{Config, CorrectOptions, ImageReport, Region, Shear, Unshear};
+use unshear::{Config, CorrectOptions, ImageReport, Refusal, Region, Shear, Unshear};
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
@@ -86,8 +86,54 @@ fn describe(report: &ImageReport) -> String {
                 if n == 1 { "" } else { "s" }
             )
         }
-        None => "no face found".to_string(),
+        None => no_shear_reason(report),
     }
+}
+
+/// Why an image got no shear, in a few words: no face, faces that disagree, or each refused
+/// face's reason with what it measured.
+fn no_shear_reason(report: &ImageReport) -> String {
+    if report.faces.is_empty() {
+        return "no face found".to_string();
+    }
+    if report.faces_disagree {
+        return format!(
+            "no trustworthy shear: the {} faces' estimates disagree with no consistent majority",
+            report.faces.len()
+        );
+    }
+    let refused: Vec<String> = report
+        .faces
+        .iter()
+        .filter_map(|f| {
+            let why = match f.refused? {
+                Refusal::LowConfidence => "low confidence",
+                Refusal::ImplausibleShear => "implausible shear",
+                Refusal::OutsideImage => "outside the image",
+                Refusal::NotFaceLike => "not face-like",
+                Refusal::UnreliablePose => "tipped and rolled head",
+            };
+            Some(format!(
+                "{why} (k_measured {:+.3}, confidence {:.2})",
+                f.k_measured, f.confidence
+            ))
+        })
+        .collect();
+    format!(
+        "no trustworthy face: {} refused: {}",
+        refused.len(),
+        refused.join("; ")
+    )
+}
+
+/// The estimate of a decoded input, with a warning first when the decode is mostly without data
+/// ([`imageio::missing_data_warning`]).
+fn estimate_with_warnings(unshear: &Unshear, img: &image::DynamicImage) -> ImageReport {
+    let mut report = unshear.estimate(img);
+    if let Some(w) = imageio::missing_data_warning(img) {
+        report.warnings.insert(0, w);
+    }
+    report
 }
 
 /// One failed input: its JSON line (with `--json`) and one line on stderr naming the file.
@@ -141,7 +187,7 @@ fn estimate(a: EstimateArgs) -> Result<bool> {
             let input = input.as_ref().map_err(|(_, e)| e.clone())?;
             let img =
                 imageio::read_image(&input.path, a.model.max_pixels).map_err(|e| e.to_string())?;
-            Ok(unshear.estimate(&img))
+            Ok(estimate_with_warnings(&unshear, &img))
         },
         |input, result, bar| {
             let file = match input {
@@ -215,7 +261,7 @@ fn correct_one(
         );
     }
     let img = imageio::read_image(&input.path, a.model.max_pixels)?;
-    let report = unshear.estimate(&img);
+    let report = estimate_with_warnings(unshear, &img);
     if let Some(annotate) = &a.annotate {
         create_parent(annotate)?;
         let picture = unshear::annotate::draw_annotations(&img, &report.marks());
@@ -237,7 +283,10 @@ fn correct_one(
     };
     let nothing_to_apply = match options.region {
         Region::Image => options.k.is_none() && report.k.is_none(),
-        Region::Face => report.faces.is_empty(),
+        Region::Face => {
+            report.faces.is_empty()
+                || (options.k.is_none() && report.faces.iter().all(|f| f.k.is_none()))
+        }
     };
     if nothing_to_apply {
         return Ok(Corrected::NoFace(report));
@@ -318,7 +367,8 @@ fn correct(a: CorrectArgs) -> Result<bool> {
                     if a.json {
                         print_line(&JsonLine::ok(&file, &report).to_line());
                     }
-                    bar.suspend(|| eprintln!("unshear: {file}: no face found; nothing written (give --k to correct anyway)"));
+                    let why = no_shear_reason(&report);
+                    bar.suspend(|| eprintln!("unshear: {file}: {why}; nothing written, the input is left as it is (give --k to correct anyway)"));
                 }
                 Err(e) => {
                     all_ok = false;

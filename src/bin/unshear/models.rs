@@ -21,6 +21,7 @@ pub fn config_from(m: &ModelArgs, base: Config) -> Config {
             FaceSearch::Thorough
         },
         min_confidence: m.min_confidence,
+        max_shear: m.max_shear,
         refinements: m.refine,
         proposals: !m.no_proposals,
         search_every_view: m.search_every_view,

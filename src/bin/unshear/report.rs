@@ -3,8 +3,9 @@
 //! "left_eye": [x, y], "right_nostril": [x, y], "left_nostril": [x, y], "nose": [x, y]|null,
 //! "mouth": [x, y]|null, "k": number|null, "k_measured": number, "roll": number,
 //! "confidence": number}]}` plus
-//! `"error": "..."` when the input failed. A face's `k` is null when its estimate was refused for
-//! low confidence; `k_measured` is what was measured all the same; `roll` is in degrees.
+//! `"error": "..."` when the input failed, `"faces_disagree"` and `"warnings"`; each face also
+//! has `"refused"` (why its `k` is null) and `"outvoted"`. A face's `k` is null when its
+//! estimate was refused; `k_measured` is what was measured all the same; `roll` is in degrees.
 
 use serde::Serialize;
 use unshear::{FaceReport, ImageReport, Point};
@@ -24,6 +25,8 @@ pub struct JsonFace {
     k_measured: f64,
     roll: f64,
     confidence: f64,
+    refused: Option<&'static str>,
+    outvoted: bool,
 }
 
 /// One input, as printed.
@@ -32,6 +35,8 @@ pub struct JsonLine {
     file: String,
     k: Option<f64>,
     faces: Vec<JsonFace>,
+    faces_disagree: bool,
+    warnings: Vec<String>,
     #[serde(skip_serializing_if = "Option::is_none")]
     error: Option<String>,
 }
@@ -59,6 +64,8 @@ impl JsonLine {
             file: file.to_string(),
             k: report.k.map(r4),
             faces: report.faces.iter().map(face).collect(),
+            faces_disagree: report.faces_disagree,
+            warnings: report.warnings.clone(),
             error: None,
         }
     }
@@ -69,6 +76,8 @@ impl JsonLine {
             file: file.to_string(),
             k: None,
             faces: Vec::new(),
+            faces_disagree: false,
+            warnings: Vec::new(),
             error: Some(message),
         }
     }
@@ -102,6 +111,8 @@ pub fn face(f: &FaceReport) -> JsonFace {
         k_measured: r4(f.k_measured),
         roll: r4(f.roll_degrees),
         confidence: r4(f.confidence),
+        refused: f.refused.map(|r| r.name()),
+        outvoted: f.outvoted,
     }
 }
 
@@ -138,6 +149,8 @@ mod tests {
                 mouth: (!refused).then_some(Point { x: w[3], y: w[4] }),
                 k: (!refused).then_some(v[12]),
                 k_measured: v[12],
+                refused: refused.then_some(unshear::pipeline::Refusal::LowConfidence),
+                outvoted: !refused,
                 k_nose: Some(w[5]),
                 k_mouth: None,
                 nose_tip: None,
@@ -179,7 +192,7 @@ mod tests {
             faces in prop::collection::vec(face(), 0..3),
             error in prop::option::of(any::<String>()),
         ) {
-            let report = ImageReport { k, faces: faces.clone(), width: 10, height: 10 };
+            let report = ImageReport { k, faces: faces.clone(), faces_disagree: false, warnings: vec![file.clone()], width: 10, height: 10 };
             let line = match &error {
                 None => JsonLine::ok(&file, &report),
                 Some(e) => JsonLine::error(&file, e.clone()),
@@ -196,6 +209,7 @@ mod tests {
                 }
                 None => {
                     prop_assert!(v.get("error").is_none());
+                    prop_assert_eq!(v["warnings"][0].as_str(), Some(file.as_str()));
                     match k {
                         Some(k) => check_number(&v["k"], k)?,
                         None => prop_assert!(v["k"].is_null()),
@@ -208,6 +222,8 @@ mod tests {
                             None => prop_assert!(p["k"].is_null()),
                         }
                         check_number(&p["k_measured"], f.k_measured)?;
+                        prop_assert_eq!(p["refused"].as_str(), f.refused.map(|r| r.name()));
+                        prop_assert_eq!(p["outvoted"].as_bool(), Some(f.outvoted));
                         check_number(&p["roll"], f.roll_degrees)?;
                         check_number(&p["confidence"], f.confidence)?;
                         check_number(&p["box"][2], f.face_box.width)?;

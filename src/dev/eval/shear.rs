@@ -28,6 +28,7 @@ use crate::dev::dataset::{by_image, AnnotatedFace};
 use crate::error::{Error, Result};
 use crate::geometry::{Point, Shear};
 use crate::imageio;
+use crate::pipeline::confidence::{box_outside_share, face_layout};
 use crate::pipeline::Unshear;
 use crate::stats::median;
 use crate::warp::{try_apply_shear, Canvas, Interpolation};
@@ -128,9 +129,22 @@ pub struct ShearSample {
     /// The same formula on the annotated points (eye midpoint over the nose point): what
     /// perfect feature locations would give.
     pub oracle: Option<f64>,
+    /// Why the estimate was refused (`low_confidence`, ...), when it was.
+    pub refused: Option<String>,
+    /// The share of the face box outside the (sheared) image, when the face was found.
+    pub box_outside: Option<f64>,
+    /// Where the located nose and mouth lie from the eyes' midpoint in the face's own frame
+    /// (measured shear and roll undone), in eye distances: nose `x, y`, mouth `x, y`
+    /// ([`face_layout`]).
+    pub layout: Option<[f64; 4]>,
     /// Milliseconds the pipeline took on the whole image (detection included).
     pub millis: f64,
 }
+
+/// How far (in shear) an accepted estimate must be from the truth to count as a gross error:
+/// a correction that leaves (or adds) a visible shear of more than 0.15, worse than most
+/// uncorrected photos.
+pub const GROSS_ERROR: f64 = 0.15;
 
 /// All samples, with the summary tables.
 #[derive(Debug, Clone, PartialEq)]
@@ -329,6 +343,20 @@ fn run_one(
                     Some([(m.x - truth.x) / ed, (m.y - truth.y) / ed])
                 }),
                 oracle,
+                refused: report.and_then(|d| d.refused.map(|r| r.name().to_string())),
+                box_outside: report
+                    .map(|d| box_outside_share(d.face_box, sheared.width(), sheared.height())),
+                layout: report.and_then(|d| {
+                    let l = face_layout(
+                        d.right_eye,
+                        d.left_eye,
+                        d.nose_tip?,
+                        d.mouth?,
+                        d.k_measured,
+                        d.roll_degrees.to_radians(),
+                    )?;
+                    Some([l.nose.x, l.nose.y, l.mouth.x, l.mouth.y])
+                }),
                 millis,
             }
         })
@@ -481,6 +509,29 @@ impl ShearEvalResult {
         }
         let _ = writeln!(
             s,
+            "\nGross errors per shear (*accepted*: faces with an accepted estimate; *gross errors*: accepted estimates more than {GROSS_ERROR} from the true k, which a correction would make worse than no correction; *refused by rule*: estimates refused as implausible, outside the image or not face-like rather than for low confidence):\n\n| true k | faces | accepted | within 0.05 | gross errors | refused by rule |\n|---:|---:|---:|---:|---:|---:|"
+        );
+        for &k in &self.shears {
+            let at = self.at(k);
+            let accepted: Vec<f64> = at
+                .iter()
+                .filter_map(|s| s.estimate.map(|e| (e - k).abs()))
+                .collect();
+            let ruled = at
+                .iter()
+                .filter(|s| s.refused.as_deref().is_some_and(|r| r != "low_confidence"))
+                .count();
+            let _ = writeln!(
+                s,
+                "| {k:+.2} | {} | {} | {} | {} | {ruled} |",
+                at.len(),
+                accepted.len(),
+                accepted.iter().filter(|&&e| e <= 0.05).count(),
+                accepted.iter().filter(|&&e| e > GROSS_ERROR).count(),
+            );
+        }
+        let _ = writeln!(
+            s,
             "\nDetections matching no annotated face per shear (no annotated face, small ones included, has both eyes in the box; the data set does not annotate every face, so each is a false face or an unannotated real one: an upper bound on false faces; *accepted*: with an accepted estimate; *duplicates*: further reported faces whose boxes hold both eyes of an evaluated face already found, the same face reported twice):\n\n| true k | unmatched | accepted | images with one | duplicates |\n|---:|---:|---:|---:|---:|"
         );
         for &k in &self.shears {
@@ -606,13 +657,13 @@ impl ShearEvalResult {
     /// Every sample as CSV.
     pub fn csv(&self) -> String {
         let mut s = String::from(
-            "image,face,true_k,eye_distance,detected,estimate,eye_error,oracle,millis\n",
+            "image,face,true_k,eye_distance,detected,estimate,eye_error,oracle,millis,measured,confidence,refused,gross_error\n",
         );
         let opt = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.5}"));
         for x in &self.samples {
             let _ = writeln!(
                 s,
-                "{},{},{},{:.2},{},{},{},{},{:.2}",
+                "{},{},{},{:.2},{},{},{},{},{:.2},{},{},{},{}",
                 x.image,
                 x.face,
                 x.true_k,
@@ -621,7 +672,12 @@ impl ShearEvalResult {
                 opt(x.estimate),
                 opt(x.eye_error),
                 opt(x.oracle),
-                x.millis
+                x.millis,
+                opt(x.measured),
+                opt(x.confidence),
+                x.refused.as_deref().unwrap_or(""),
+                x.estimate
+                    .is_some_and(|e| (e - x.true_k).abs() > GROSS_ERROR)
             );
         }
         s
