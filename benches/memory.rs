@@ -113,7 +113,8 @@ fn vm_hwm() -> Option<f64> {
 
 /// The child: the library path on `photo`, printing one line per figure.
 fn measure_library(photo: &Path) {
-    let unshear = unshear::Unshear::with_defaults().unwrap_or_else(|e| fail("models", e));
+    let unshear =
+        unshear::Unshear::new(unshear::Config::default()).unwrap_or_else(|e| fail("models", e));
     let base = LIVE.load(Ordering::Relaxed);
     PEAK.store(base, Ordering::Relaxed);
     let img = unshear::imageio::read_image(photo, unshear::imageio::DEFAULT_MAX_PIXELS)

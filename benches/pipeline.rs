@@ -10,9 +10,9 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use image::imageops::FilterType;
-use unshear::landmarks::{Budget, LandmarkNet, Workspace};
-use unshear::pipeline::{FaceSearch, Locator};
-use unshear::Unshear;
+use unshear::locate::network::{Budget, LandmarkNet, Workspace};
+use unshear::pipeline::Detection;
+use unshear::{Config, FaceStart, Locator, Unshear};
 
 fn fixture() -> image::DynamicImage {
     let path = concat!(
@@ -35,8 +35,17 @@ where
     }
 }
 
+/// Where the pipeline starts a detection's estimate: the view it was found in.
+fn start(d: &Detection) -> FaceStart {
+    FaceStart {
+        k: d.view_k,
+        roll: d.view_roll,
+        budget: None,
+    }
+}
+
 fn bench(c: &mut Criterion) {
-    let unshear = match Unshear::with_defaults() {
+    let unshear = match Unshear::new(unshear::Config::default()) {
         Ok(u) => u,
         Err(e) => panic!("models: {e}"),
     };
@@ -44,15 +53,17 @@ fn bench(c: &mut Criterion) {
     let gray = Unshear::gray(&img);
     let face = unshear.detector().detect(&gray)[0];
     c.bench_function("estimate one face (after detection)", |b| {
-        b.iter(|| unshear.estimate_face(&gray, face))
+        b.iter(|| unshear.estimate_face(&gray, face, FaceStart::default()))
     });
-    let mut with_filters = match Unshear::with_defaults() {
+    let with_filters = match Unshear::new(Config {
+        locator: Locator::Filters,
+        ..Config::default()
+    }) {
         Ok(u) => u,
         Err(e) => panic!("models: {e}"),
     };
-    with_filters.set_locator(Locator::Filters);
     c.bench_function("estimate one face, filters (after detection)", |b| {
-        b.iter(|| with_filters.estimate_face(&gray, face))
+        b.iter(|| with_filters.estimate_face(&gray, face, FaceStart::default()))
     });
     let net = match LandmarkNet::embedded() {
         Ok(n) => n,
@@ -85,7 +96,7 @@ fn bench(c: &mut Criterion) {
     };
     c.bench_function(
         "estimate one face tilted 22 degrees (after detection)",
-        |b| b.iter(|| unshear.estimate_detection(&tilted, &tilted_face)),
+        |b| b.iter(|| unshear.estimate_face(&tilted, tilted_face.face_box, start(&tilted_face))),
     );
 
     // The same face sheared by 0.3, detected as the pipeline detects it (its de-sheared views):
@@ -104,27 +115,39 @@ fn bench(c: &mut Criterion) {
         panic!("the sheared fixture must be found");
     };
     c.bench_function("estimate one face sheared 0.3 (after detection)", |b| {
-        b.iter(|| unshear.estimate_detection(&sheared, &sheared_face))
+        b.iter(|| unshear.estimate_face(&sheared, sheared_face.face_box, start(&sheared_face)))
     });
     let Some(&sheared_face_filters) = with_filters.detect(&sheared).first() else {
         panic!("the sheared fixture must be found with the filters' search too");
     };
     c.bench_function(
         "estimate one face sheared 0.3, filters (after detection)",
-        |b| b.iter(|| with_filters.estimate_detection(&sheared, &sheared_face_filters)),
+        |b| {
+            b.iter(|| {
+                with_filters.estimate_face(
+                    &sheared,
+                    sheared_face_filters.face_box,
+                    start(&sheared_face_filters),
+                )
+            })
+        },
     );
     // The same with the network held to one crop (`--max-crops 1`), the same detection.
-    let mut one_crop = match Unshear::with_defaults() {
+    let one_crop = match Unshear::new(Config {
+        network_budget: Budget {
+            max_passes: 1,
+            ..Budget::STILL
+        },
+        ..Config::default()
+    }) {
         Ok(u) => u,
         Err(e) => panic!("models: {e}"),
     };
-    one_crop.set_network_budget(Budget {
-        max_passes: 1,
-        ..Budget::STILL
-    });
     c.bench_function(
         "estimate one face sheared 0.3, one crop (after detection)",
-        |b| b.iter(|| one_crop.estimate_detection(&sheared, &sheared_face)),
+        |b| {
+            b.iter(|| one_crop.estimate_face(&sheared, sheared_face.face_box, start(&sheared_face)))
+        },
     );
 
     // A 1920x1080 frame: the fixture enlarged to full height, on a mid-grey canvas.
@@ -160,7 +183,7 @@ fn bench(c: &mut Criterion) {
     };
     let params = unshear::detect::ProposalParams {
         min_eye_distance: unshear::pipeline::WEAK_BOX_MIN_WIDTH
-            * unshear::features::EYE_DISTANCE_PER_BOX_WIDTH,
+            * unshear::detect::boxes::EYE_DISTANCE_PER_BOX_WIDTH,
         ..Default::default()
     };
     group.bench_function("face proposals, 1 thread", |b| {
@@ -172,11 +195,10 @@ fn bench(c: &mut Criterion) {
     group.finish();
 
     // The default (thorough) search and the quick one (`--quick`).
-    let mut quick = match Unshear::with_defaults() {
+    let quick = match Unshear::new(Config::quick()) {
         Ok(u) => u,
         Err(e) => panic!("models: {e}"),
     };
-    quick.set_face_search(FaceSearch::Quick);
     let mut group = c.benchmark_group("estimate whole 1920x1080 frame");
     group.sample_size(10);
     group.bench_function("all threads", |b| b.iter(|| unshear.estimate_gray(&frame)));

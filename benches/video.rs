@@ -69,8 +69,11 @@ fn bench_video(c: &mut Criterion) {
         ("end_to_end_60_frames", Locator::Network),
         ("end_to_end_60_frames_filters", Locator::Filters),
     ] {
-        let mut unshear = Unshear::with_defaults().expect("built-in models");
-        unshear.set_locator(locator);
+        let unshear = Unshear::new(unshear::Config {
+            locator,
+            ..unshear::Config::default()
+        })
+        .expect("built-in models");
         group.bench_function(name, |b| {
             b.iter(|| {
                 let mut reader =

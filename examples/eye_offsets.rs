@@ -16,10 +16,11 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
-use unshear::dataset::{CaltechWebFaces, FaceDataset};
-use unshear::features::{face_box_from_eyes, FeatureLocator, NormalizedFace};
+use unshear::detect::boxes::face_box_from_eyes;
+use unshear::dev::dataset::{CaltechWebFaces, FaceDataset};
 use unshear::filters::EyeFilters;
-use unshear::pipeline::median;
+use unshear::locate::filters::{FeatureLocator, NormalizedFace};
+use unshear::stats::median;
 
 fn main() -> Result<()> {
     let args: Vec<String> = std::env::args().collect();

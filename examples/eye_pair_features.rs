@@ -24,12 +24,12 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use rayon::prelude::*;
-use unshear::dataset::{by_image, CaltechWebFaces, FaceDataset};
-use unshear::eval::shear::{context_crop, DEFAULT_CONTEXT};
-use unshear::features::{
+use unshear::dev::dataset::{by_image, CaltechWebFaces, FaceDataset};
+use unshear::dev::eval::shear::{context_crop, DEFAULT_CONTEXT};
+use unshear::geometry::{Point, Shear};
+use unshear::locate::filters::{
     expected_eyes, EyeSearch, FeatureLocator, NormalizedFace, EYE_CANDIDATES, EYE_PAIR_FEATURES,
 };
-use unshear::geometry::{Point, Shear};
 use unshear::pipeline::Unshear;
 use unshear::warp::{try_apply_shear, Canvas, Interpolation};
 
@@ -47,7 +47,7 @@ fn main() -> Result<()> {
         .into_iter()
         .filter(|f| (min_eyes..40.0).contains(&f.eye_distance()))
         .collect();
-    let unshear = Unshear::with_defaults()?;
+    let unshear = Unshear::new(unshear::Config::default())?;
     let groups = by_image(faces);
     // One CSV block per image and shear, in the images' order.
     let blocks: Vec<Vec<(f64, Vec<String>)>> = groups

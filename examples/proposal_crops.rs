@@ -25,9 +25,9 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
-use unshear::dataset::{AnnotatedFace, CaltechWebFaces, FaceDataset};
+use unshear::dev::dataset::{AnnotatedFace, CaltechWebFaces, FaceDataset};
 use unshear::geometry::{Point, Shear};
-use unshear::landmarks::{frame_around_eyes, CropFrame};
+use unshear::locate::network::{frame_around_eyes, CropFrame};
 use unshear::warp::{try_apply_shear, Canvas, Interpolation, Placement};
 
 /// Side of the windows, pixels.

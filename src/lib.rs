@@ -1,61 +1,79 @@
 //! # unshear
 //!
 //! Remove rolling-shutter skew from photos and video frames of people, using the face itself as
-//! the ruler: Viola-Jones face detection searched in de-sheared and turned views, the face's
-//! features located by a small landmark network (the default) or by correlation filters for
-//! the eyes, nostrils, nose and mouth (MOSSE by default, the paper's UMACE on request), the
-//! shear estimate of equation 5 or the shear-roll-yaw model that extends it, and the row-shift
-//! correction of equation 6 of the paper in `../shared/paper/`.
+//! the ruler: faces found by Viola-Jones (searched in de-sheared and turned views) and a small
+//! proposal classifier, their eyes, nose and mouth located by a small landmark network (or by
+//! the paper's correlation filters), the shear estimated from those points (equation 5 of the
+//! paper in `../shared/paper/`, or the shear-and-roll model that extends it), and undone row by
+//! row (equation 6).
 //!
-//! Data flows one way through the modules:
+//! ```no_run
+//! use unshear::{imageio, Config, CorrectOptions, Unshear};
 //!
-//! ```text
-//! imageio ─▶ detect ─▶ landmarks, or features (filters) ─▶ estimate ─▶ warp ─▶ imageio
+//! # fn main() -> unshear::Result<()> {
+//! let unshear = Unshear::new(Config::default())?;
+//! let img = imageio::read_image("photo.jpg".as_ref(), imageio::DEFAULT_MAX_PIXELS)?;
+//! let report = unshear.estimate(&img);
+//! if report.k.is_some() {
+//!     let fixed = unshear.correct(&img, &report, &CorrectOptions::default())?;
+//!     fixed.save("fixed.png").ok();
+//! }
+//! # Ok(())
+//! # }
 //! ```
 //!
-//! * [`imageio`]: read (EXIF orientation applied, size-limited) and write (atomic, never over an input).
-//! * [`detect`]: OpenCV-compatible Viola-Jones face detection on Haar cascades.
-//! * [`landmarks`]: the landmark network (eyes, nose, mouth and the shear read off one crop of
-//!   the face), the default locator.
-//! * [`filters`]: correlation filters (UMACE, ASEF, MOSSE): synthesis, file format, frequency-domain
-//!   correlation.
-//! * [`features`]: eyes, nostrils, nose and mouth located in the 150-px face with the filters.
-//! * [`estimate`]: the shear `k` from the feature points (equation 5, or shear with roll and
-//!   yaw).
-//! * [`warp`]: sub-pixel row shifts that apply or undo a shear (equation 6), and the turned views
-//!   the detector searches.
+//! Data flows one way through the modules; none imports a module after it in this list:
+//!
+//! ```text
+//! geometry, stats ─▶ imageio ─▶ warp ─▶ detect ─▶ filters ─▶ locate ─▶ estimate ─▶ config
+//!     ─▶ pipeline ─▶ annotate, video ─▶ dev (feature "dev") ─▶ the `unshear` binary
+//! ```
+//!
+//! * [`imageio`]: read (EXIF orientation applied, size-limited) and write (atomic, never over an
+//!   input).
+//! * [`warp`]: sub-pixel row shifts that apply or undo a shear (equation 6), and turned views.
+//! * [`detect`]: Viola-Jones on OpenCV's Haar cascades, the face proposal classifier, and the
+//!   geometry tying a detector box to the eyes it holds.
+//! * [`filters`]: correlation filters (UMACE, ASEF, MOSSE): synthesis, file format, correlation.
+//! * [`locate`]: where the features are in one face: the landmark network, or the filters.
+//! * [`estimate`]: the shear `k` from located points, and how far it can be trusted.
+//! * [`config`]: every setting, as one plain value.
 //! * [`pipeline`]: all of the above behind one [`Unshear`] value.
-//! * [`train`]: building the eye filters from an annotated data set.
-//! * [`eval`]: the measurements the README reports (synthetic shear, nostrils, recognition).
 //! * [`video`]: y4m streams and frame folders, faces tracked between detections, `k` filtered
 //!   over time.
+//! * `dev` (feature `dev`): the data sets, filter training and the measurements of
+//!   `docs/accuracy.md`.
 
 // Every public item is documented (`.ci/run` denies warnings).
 #![warn(missing_docs)]
 
 pub mod annotate;
-pub mod dataset;
+pub mod config;
 pub mod detect;
+#[cfg(feature = "dev")]
+pub mod dev;
 pub mod error;
 pub mod estimate;
-pub mod eval;
-pub mod features;
 pub mod filters;
 pub mod geometry;
 pub mod imageio;
-pub mod landmarks;
+pub mod locate;
 mod modelfile;
+pub(crate) mod nn;
 pub mod pipeline;
 pub mod resample;
+#[cfg(any(test, feature = "dev"))]
+mod rng;
+pub mod stats;
 #[cfg(test)]
 mod testing;
-pub mod train;
 pub mod video;
 pub mod warp;
 
+pub use config::{Config, FaceSearch, Locator};
 pub use error::{Error, Result};
 pub use geometry::{Point, Rect, Shear};
-pub use pipeline::{FaceReport, ImageReport, Unshear};
+pub use pipeline::{CorrectOptions, FaceReport, FaceStart, ImageReport, Models, Region, Unshear};
 
 /// The README's Rust example, compiled as a doctest so it cannot go stale.
 #[cfg(doctest)]

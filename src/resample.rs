@@ -1,6 +1,6 @@
 //! Resampling a grey image at sub-pixel placement and any scale: the one filter the normalised
-//! face ([`crate::features::NormalizedFace`]) and the landmark network's crop
-//! ([`crate::landmarks::CropFrame`]) are both cut with, so that what the network was trained on
+//! face ([`crate::locate::filters::NormalizedFace`]) and the landmark network's crop
+//! ([`crate::locate::network::CropFrame`]) are both cut with, so that what the network was trained on
 //! and what it sees at run time come from the same code.
 
 use std::ops::Range;

@@ -4,19 +4,25 @@
 use std::path::{Path, PathBuf};
 
 use image::DynamicImage;
-use unshear::pipeline::{FaceSearch, Locator};
 use unshear::warp::{apply_shear, Canvas, Interpolation};
-use unshear::{Shear, Unshear};
+use unshear::{Config, FaceSearch, Locator, Shear, Unshear};
 
 /// The built-in models with each locator: the landmark network (the default) and the paper's
 /// correlation filters; every contract below holds for both.
 fn correctors() -> [(Locator, Unshear); 2] {
     [Locator::Network, Locator::Filters].map(|locator| {
-        let mut unshear = Unshear::with_defaults().expect("built-in models");
-        unshear.set_locator(locator);
+        let unshear = built(Config {
+            locator,
+            ..Config::default()
+        });
         assert_eq!(unshear.locator(), locator);
         (locator, unshear)
     })
+}
+
+/// A corrector with the built-in models.
+fn built(config: Config) -> Unshear {
+    Unshear::new(config).expect("built-in models")
 }
 
 fn fixtures() -> Vec<PathBuf> {
@@ -209,11 +215,13 @@ fn de_sheared_detection_finds_faces_the_single_pass_misses() {
     ];
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/faces");
     for (locator, default) in correctors() {
-        let mut single_pass = Unshear::with_defaults().expect("built-in models");
-        single_pass.set_locator(locator);
-        single_pass.set_face_search(FaceSearch::Quick);
-        single_pass.set_shear_hypotheses(&[]);
-        single_pass.set_roll_hypotheses(&[]);
+        let single_pass = built(Config {
+            locator,
+            search: FaceSearch::Quick,
+            shear_hypotheses: Some(Vec::new()),
+            roll_hypotheses: Some(Vec::new()),
+            ..Config::default()
+        });
         for (name, k) in cases {
             let img = sheared(&load(&dir.join(name)), k);
             assert!(
@@ -232,7 +240,7 @@ fn de_sheared_detection_finds_faces_the_single_pass_misses() {
 
 /// Two people side by side, one still and one moving fast (its face sheared by 0.7, beyond the
 /// cascade's tolerance): in the quick search the still face is found and trusted in the image
-/// as it is, so the retries do not run and the moving face is missed; `set_search_every_view`
+/// as it is, so the retries do not run and the moving face is missed; `search_every_view`
 /// searches the de-sheared views all the same and finds it, each face with its own shear, as
 /// the thorough search (the default) does with the network.
 #[test]
@@ -243,24 +251,31 @@ fn searching_every_view_finds_a_second_face_sheared_beyond_the_cascade() {
     let mut pair = image::GrayImage::new(still.width() + moving.width(), still.height());
     image::imageops::replace(&mut pair, &still, 0, 0);
     image::imageops::replace(&mut pair, &moving, i64::from(still.width()), 0);
-    for (locator, mut unshear) in correctors() {
-        unshear.set_face_search(FaceSearch::Quick);
-        let found = unshear.estimate_gray(&pair);
+    for locator in [Locator::Network, Locator::Filters] {
+        let with = |search, search_every_view| {
+            built(Config {
+                locator,
+                search,
+                search_every_view,
+                ..Config::default()
+            })
+        };
+        let found = with(FaceSearch::Quick, false).estimate_gray(&pair);
         assert_eq!(
             found.faces.len(),
             1,
             "{locator:?}: only the still face in the quick search"
         );
-        unshear.set_search_every_view(true);
+        let unshear = with(FaceSearch::Quick, true);
         let mut faces = unshear.estimate_gray(&pair).faces;
         assert_eq!(faces.len(), 2, "{locator:?}: both faces");
         // The thorough search (the default) searches every view too, with the network.
-        unshear.set_search_every_view(false);
-        unshear.set_face_search(FaceSearch::Thorough);
-        let thorough = unshear.estimate_gray(&pair).faces.len();
+        let thorough = with(FaceSearch::Thorough, false)
+            .estimate_gray(&pair)
+            .faces
+            .len();
         let expected = if locator == Locator::Network { 2 } else { 1 };
         assert_eq!(thorough, expected, "{locator:?}: thorough");
-        unshear.set_search_every_view(true);
         faces.sort_by(|a, b| a.face_box.x.total_cmp(&b.face_box.x));
         // The still face reads as it does alone (the second face does not disturb it), the
         // moving one within 0.05 of its shear. "As it does alone": to within how much the
@@ -285,20 +300,36 @@ fn searching_every_view_finds_a_second_face_sheared_beyond_the_cascade() {
     }
 }
 
-/// A corrector (built-in filters) whose cascade cannot fire: its smallest box is larger than
-/// any test image.
-fn blind_corrector() -> Unshear {
-    use unshear::detect::{Cascade, DetectorParams, FaceDetector};
-    let blind = FaceDetector::new(
-        Cascade::frontal_face_alt2(),
-        DetectorParams {
-            min_size: (10_000, 10_000),
-            ..DetectorParams::default()
-        },
-    );
-    let filters = unshear::filters::EyeFilters::embedded().expect("built-in filters");
-    Unshear::new(blind, filters)
-}
+/// The size that no test image reaches: a detector whose smallest box is this cannot fire.
+const BLIND: (u32, u32) = (10_000, 10_000);
+
+/// A Haar cascade that never fires: its one stage's threshold is above what its one tree can
+/// give.
+const NEVER_FIRES: &str = r#"<?xml version="1.0"?>
+<opencv_storage>
+<cascade type_id="opencv-cascade-classifier"><stageType>BOOST</stageType>
+  <featureType>HAAR</featureType>
+  <height>4</height>
+  <width>4</width>
+  <stageParams><maxWeakCount>1</maxWeakCount></stageParams>
+  <featureParams><maxCatCount>0</maxCatCount></featureParams>
+  <stageNum>1</stageNum>
+  <stages>
+    <_>
+      <maxWeakCount>1</maxWeakCount>
+      <stageThreshold>2.0</stageThreshold>
+      <weakClassifiers>
+        <_>
+          <internalNodes>0 -1 0 0.25</internalNodes>
+          <leafValues>0 1</leafValues></_></weakClassifiers></_></stages>
+  <features>
+    <_>
+      <rects>
+        <_>0 0 2 4 1.</_>
+        <_>2 0 2 4 -1.</_></rects>
+      <tilted>0</tilted></_></features></cascade>
+</opencv_storage>
+"#;
 
 /// The fallback cascade is asked only when the main detector gives no accepted estimate: with a
 /// main detector that cannot fire (its smallest box is larger than the image), the fallback
@@ -307,21 +338,27 @@ fn blind_corrector() -> Unshear {
 /// found.
 #[test]
 fn fallback_cascade_finds_what_the_main_detector_misses() {
-    use unshear::detect::DetectorParams;
-    use unshear::pipeline::FallbackDetector;
-    let mut unshear = blind_corrector();
+    use unshear::detect::Cascade;
+    use unshear::filters::FilterType;
+    // The paper's filters and the quick search, with a main cascade that never fires.
+    let blind = |fallback_cascade| {
+        let mut models = unshear::Models::builtin(FilterType::DEFAULT).expect("built-in models");
+        models.cascade = Cascade::from_xml(NEVER_FIRES).expect("a valid cascade");
+        let config = Config {
+            locator: Locator::Filters,
+            fallback_cascade,
+            ..Config::quick()
+        };
+        Unshear::with_models(config, models).expect("valid")
+    };
     // The quick search, whose views are all on OpenCV's scale ladder as the fallback's are (the
     // thorough search scans some views half a scale step up, which moves its box sizes).
-    let mut alt2 = Unshear::with_defaults().expect("built-in models");
-    alt2.set_face_search(FaceSearch::Quick);
+    let alt2 = built(Config::quick());
+    let (without, with) = (blind(false), blind(true));
     for path in fixtures() {
         let img = sheared(&load(&path), 0.2);
-        unshear.set_fallback_detector(None);
-        assert!(unshear.estimate(&img).faces.is_empty());
-        unshear.set_fallback_detector(Some(FallbackDetector::frontal_face_default(
-            DetectorParams::default(),
-        )));
-        let report = unshear.estimate(&img);
+        assert!(without.estimate(&img).faces.is_empty());
+        let report = with.estimate(&img);
         assert_eq!(report.faces.len(), 1, "{}", path.display());
         let main = alt2.estimate(&img);
         let (b, a) = (report.faces[0].face_box, main.faces[0].face_box);
@@ -340,19 +377,22 @@ fn fallback_cascade_finds_what_the_main_detector_misses() {
 /// estimated within 0.05; without proposals nothing is found.
 #[test]
 fn face_proposals_find_what_the_cascade_misses() {
-    use unshear::detect::ProposalNet;
-    let mut unshear = blind_corrector();
-    unshear.set_network(Some(
-        unshear::landmarks::LandmarkNet::embedded().expect("built-in network"),
-    ));
-    unshear.set_face_search(FaceSearch::Thorough);
+    let blind = |proposals| {
+        built(Config {
+            proposals,
+            detector: unshear::detect::DetectorParams {
+                min_size: BLIND,
+                ..Default::default()
+            },
+            ..Config::default()
+        })
+    };
+    let (without, with) = (blind(false), blind(true));
     for path in fixtures() {
         for k in [-0.4, 0.0, 0.4] {
             let img = sheared(&load(&path), k);
-            unshear.set_proposals(None);
-            assert!(unshear.estimate(&img).faces.is_empty());
-            unshear.set_proposals(Some(ProposalNet::embedded().expect("built-in proposals")));
-            let report = unshear.estimate(&img);
+            assert!(without.estimate(&img).faces.is_empty());
+            let report = with.estimate(&img);
             assert_eq!(report.faces.len(), 1, "{} at {k}", path.display());
             let found = report.k.expect("an accepted estimate");
             assert!(
@@ -415,7 +455,7 @@ fn rolled_faces_are_measured_upright() {
 #[test]
 fn faces_rolled_beyond_the_model_are_not_reported() {
     use unshear::warp::rotate::rotate_gray;
-    let unshear = Unshear::with_defaults().expect("built-in models");
+    let unshear = Unshear::new(unshear::Config::default()).expect("built-in models");
     for path in fixtures() {
         let gray = Unshear::gray(&load(&path));
         let upright = unshear.estimate_gray(&gray);
@@ -429,12 +469,11 @@ fn faces_rolled_beyond_the_model_are_not_reported() {
                 face_box.width,
                 face_box.height,
             );
-            let report = unshear.estimate_face_in_turned_view(
-                &turned,
-                turned_box,
-                0.0,
-                degrees.to_radians(),
-            );
+            let start = unshear::FaceStart {
+                roll: degrees.to_radians(),
+                ..Default::default()
+            };
+            let report = unshear.estimate_face(&turned, turned_box, start);
             if degrees < 57.0 {
                 let face = report.expect("a face rolled 30 degrees is measured");
                 assert!(
@@ -469,7 +508,9 @@ fn a_face_boxed_at_the_wrong_scale_is_measured_at_its_eyes_scale() {
             let base = face.k_measured;
             for factor in [0.85, 1.15] {
                 let scaled = face.face_box.scaled_about_center(factor);
-                let report = unshear.estimate_face(&gray, scaled).expect("an estimate");
+                let report = unshear
+                    .estimate_face(&gray, scaled, unshear::FaceStart::default())
+                    .expect("an estimate");
                 assert_eq!(report.face_box, scaled, "{locator:?} {}", path.display());
                 assert!(
                     (report.k_measured - base).abs() <= 0.03,
@@ -504,7 +545,7 @@ fn the_thorough_search_reports_no_false_faces() {
         image::Luma([(state >> 24) as u8])
     });
     let blurred = image::imageops::blur(&noise, 3.0);
-    let unshear = Unshear::with_defaults().expect("built-in models");
+    let unshear = Unshear::new(unshear::Config::default()).expect("built-in models");
     for (what, frame, faces) in [
         ("wall", &wall, 1),
         ("noise", &noise, 0),

@@ -127,7 +127,7 @@ fn faces() -> Vec<GrayImage> {
 
 fn unshear() -> &'static Unshear {
     static U: std::sync::OnceLock<Unshear> = std::sync::OnceLock::new();
-    U.get_or_init(|| Unshear::with_defaults().expect("built-in models"))
+    U.get_or_init(|| Unshear::new(unshear::Config::default()).expect("built-in models"))
 }
 
 /// A fixture face sheared by `k` (bilinear, same canvas).
@@ -142,7 +142,7 @@ fn sheared_face(face: usize, k: f64) -> GrayImage {
 /// The measured shear (refused or not: these properties are of the estimator, not of the
 /// confidence threshold).
 fn k_of(img: &GrayImage) -> Option<f64> {
-    unshear::pipeline::median(
+    unshear::stats::median(
         unshear()
             .estimate_gray(img)
             .faces

@@ -3,13 +3,11 @@
 
 use std::path::PathBuf;
 
-use unshear::dataset::{CaltechWebFaces, FaceDataset};
-use unshear::detect::{Cascade, DetectorParams, FaceDetector};
-use unshear::eval::shear::{evaluate_shear_in_context, DEFAULT_CONTEXT};
-use unshear::eval::ShearEvalOptions;
-use unshear::filters::{EyeFilters, FilterType};
-use unshear::landmarks::LandmarkNet;
-use unshear::pipeline::FaceSearch;
+use unshear::detect::DetectorParams;
+use unshear::dev::dataset::{CaltechWebFaces, FaceDataset};
+use unshear::dev::eval::shear::{evaluate_shear_in_context, DEFAULT_CONTEXT};
+use unshear::dev::eval::ShearEvalOptions;
+use unshear::filters::FilterType;
 use unshear::Unshear;
 
 mod common;
@@ -24,12 +22,12 @@ fn retraining_reproduces_the_committed_filters() {
     };
     let faces = CaltechWebFaces::new(root).faces().expect("annotations");
     for kind in FilterType::ALL {
-        let options = unshear::train::TrainOptions {
+        let options = unshear::dev::train::TrainOptions {
             filter_type: kind,
             ..Default::default()
         };
         let (filters, summary) =
-            unshear::train::train_eye_filters(faces.clone(), &options).expect("training");
+            unshear::dev::train::train_eye_filters(faces.clone(), &options).expect("training");
         assert!(summary.unreadable.is_empty(), "{:?}", summary.unreadable);
         assert!(summary.crops >= 1500);
         assert_eq!(filters.kind, kind);
@@ -46,9 +44,8 @@ fn retraining_reproduces_the_committed_filters() {
 /// A small slice of the shear evaluation: on the first 60 Caltech faces with an eye distance of
 /// at least 40 px the default search finds the faces, and the median estimate follows the shear
 /// (the full table is in the README).
-fn median_of(samples: &[&unshear::eval::ShearSample]) -> f64 {
-    unshear::pipeline::median(samples.iter().filter_map(|s| s.estimate).collect())
-        .unwrap_or(f64::NAN)
+fn median_of(samples: &[&unshear::dev::eval::ShearSample]) -> f64 {
+    unshear::stats::median(samples.iter().filter_map(|s| s.estimate).collect()).unwrap_or(f64::NAN)
 }
 
 #[test]
@@ -65,18 +62,14 @@ fn caltech_slice_tracks_the_shear() {
         .collect();
     // The built-in models and search, with the smallest box `unshear eval shear` uses for
     // these faces (1.5 times the 40 px eye distance).
-    let mut unshear = Unshear::new(
-        FaceDetector::new(
-            Cascade::frontal_face_alt2(),
-            DetectorParams {
-                min_size: (60, 60),
-                ..DetectorParams::default()
-            },
-        ),
-        EyeFilters::embedded().expect("filters"),
-    );
-    unshear.set_network(Some(LandmarkNet::embedded().expect("network")));
-    unshear.set_face_search(FaceSearch::Thorough);
+    let unshear = Unshear::new(unshear::Config {
+        detector: DetectorParams {
+            min_size: (60, 60),
+            ..DetectorParams::default()
+        },
+        ..unshear::Config::default()
+    })
+    .expect("built-in models");
     let options = ShearEvalOptions {
         shears: vec![0.0, 0.3],
         max_pixels: unshear::imageio::DEFAULT_MAX_PIXELS,
@@ -85,7 +78,7 @@ fn caltech_slice_tracks_the_shear() {
     // Each image cropped to its faces' surroundings, as `unshear eval shear` does (whole photos
     // of up to 2300 px took four minutes here).
     let result = evaluate_shear_in_context(&unshear, &faces, &options, DEFAULT_CONTEXT, || {});
-    let at = |k: f64| -> Vec<&unshear::eval::ShearSample> {
+    let at = |k: f64| -> Vec<&unshear::dev::eval::ShearSample> {
         result.samples.iter().filter(|s| s.true_k == k).collect()
     };
     let detected = |k: f64| at(k).iter().filter(|s| s.detected).count() as f64 / at(k).len() as f64;
@@ -97,7 +90,7 @@ fn caltech_slice_tracks_the_shear() {
         median_of(&at(0.3))
     );
     let median = |k: f64| {
-        unshear::pipeline::median(at(k).iter().filter_map(|s| s.estimate).collect())
+        unshear::stats::median(at(k).iter().filter_map(|s| s.estimate).collect())
             .expect("estimates")
     };
     // These 60 faces (printed above): all found at both shears, medians 0.012 and 0.312. The

@@ -97,9 +97,7 @@ fn y4m_bytes(frames: &[(GrayImage, f64)]) -> Vec<u8> {
 
 /// The corrector as `unshear video` sets it up by default (equation 5: the steadiest per frame).
 fn video_unshear() -> Unshear {
-    let mut unshear = Unshear::with_defaults().expect("models");
-    unshear.set_model(unshear::estimate::ShearModel::Equation5);
-    unshear
+    Unshear::new(unshear::Config::video()).expect("models")
 }
 
 /// Runs the whole pipeline over the y4m bytes; returns per-frame results and output frames.

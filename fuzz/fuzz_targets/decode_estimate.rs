@@ -14,7 +14,7 @@ const MAX_PIXELS: u64 = 256 * 256;
 
 fn unshear() -> &'static Unshear {
     static U: OnceLock<Unshear> = OnceLock::new();
-    U.get_or_init(|| Unshear::with_defaults().expect("the built-in models load"))
+    U.get_or_init(|| Unshear::new(unshear::Config::default()).expect("the built-in models load"))
 }
 
 fuzz_target!(|data: &[u8]| {

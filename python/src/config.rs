@@ -1,16 +1,14 @@
-//! The corrector's settings, as Python keyword arguments: parsed and checked here, turned into an
-//! `unshear::Unshear` by [`build`] (the one place that knows the library's construction API).
+//! The corrector's settings, as Python keyword arguments: parsed and checked here, turned into
+//! the library's `Config` by [`to_config`] (as the CLI turns its flags into one).
 
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
-use unshear::detect::{Cascade, DetectorParams, FaceDetector, ProposalNet};
+use unshear::detect::DetectorParams;
 use unshear::estimate::ShearModel;
-use unshear::filters::{EyeFilters, FilterType};
-use unshear::landmarks::{Budget, LandmarkNet};
-use unshear::pipeline::{FaceSearch, FallbackDetector, Locator, DEFAULT_MIN_CONFIDENCE};
-use unshear::Unshear;
+use unshear::filters::FilterType;
+use unshear::{Config, FaceSearch, Locator, Unshear};
 
 /// How hard faces are searched for (`search=`): the CLI's default, `--quick` and
 /// `--no-shear-search`.
@@ -22,7 +20,7 @@ pub enum Search {
 }
 
 /// Every setting of `unshear.Unshear(**config)`, with the CLI's defaults (`None`: the default
-/// of the search, or of stills / video, as the CLI leaves it).
+/// of stills or of video, as the CLI leaves it).
 #[derive(Debug, Clone, PartialEq)]
 pub struct PyConfig {
     pub locator: Locator,
@@ -43,24 +41,28 @@ pub struct PyConfig {
 }
 
 impl Default for PyConfig {
+    /// The library's defaults for stills (`Config::default()`, the CLI's).
     fn default() -> Self {
-        let detector = DetectorParams::default();
+        let c = Config::default();
         Self {
-            locator: Locator::Network,
-            search: Search::Thorough,
-            min_confidence: DEFAULT_MIN_CONFIDENCE,
+            locator: c.locator,
+            search: match c.search {
+                FaceSearch::Thorough => Search::Thorough,
+                FaceSearch::Quick => Search::Quick,
+            },
+            min_confidence: c.min_confidence,
             max_crops: None,
-            refinements: unshear::pipeline::DEFAULT_REFINEMENTS,
+            refinements: c.refinements,
             shear_model: None,
-            filter_type: FilterType::DEFAULT,
-            min_face: 0,
-            min_neighbors: detector.min_neighbors,
-            scale_factor: detector.scale_factor,
-            proposals: true,
-            fallback_cascade: false,
-            search_every_view: false,
-            shear_hypotheses: None,
-            roll_hypotheses: None,
+            filter_type: c.filter_type,
+            min_face: c.detector.min_size.0,
+            min_neighbors: c.detector.min_neighbors,
+            scale_factor: c.detector.scale_factor,
+            proposals: c.proposals,
+            fallback_cascade: c.fallback_cascade,
+            search_every_view: c.search_every_view,
+            shear_hypotheses: c.shear_hypotheses,
+            roll_hypotheses: c.roll_hypotheses,
         }
     }
 }
@@ -226,34 +228,13 @@ impl PyConfig {
         Ok(c)
     }
 
-    /// The CLI's checks of the same options (its usage errors become `ValueError`).
+    /// The checks the CLI makes of its flags before the library sees them (clap's ranges and
+    /// conflicts); `Config::validate` checks the values themselves when the corrector is built.
     pub fn validate(&self) -> PyResult<()> {
-        let bad = |m: String| Err(PyValueError::new_err(m));
-        if !(0.0..=1.0).contains(&self.min_confidence) {
-            return bad(format!(
-                "min_confidence {} is outside 0 to 1",
-                self.min_confidence
-            ));
-        }
+        let bad = |m: &str| Err(PyValueError::new_err(m.to_string()));
         if let Some(n) = self.max_crops {
             if !(1..=64).contains(&n) {
-                return bad(format!("max_crops must be 1 to 64, got {n}"));
-            }
-        }
-        if !(self.scale_factor.is_finite() && self.scale_factor > 1.0 && self.scale_factor <= 2.0) {
-            return bad(format!(
-                "scale_factor must be above 1 and at most 2, got {}",
-                self.scale_factor
-            ));
-        }
-        if let Some(ks) = &self.shear_hypotheses {
-            if ks.iter().any(|k| !k.is_finite() || k.abs() > 2.0) {
-                return bad("shear_hypotheses must be numbers between -2 and 2".into());
-            }
-        }
-        if let Some(rs) = &self.roll_hypotheses {
-            if rs.iter().any(|r| !r.is_finite() || r.abs() >= 90.0) {
-                return bad("roll_hypotheses must be degrees between -90 and 90".into());
+                return bad(&format!("max_crops must be 1 to 64, got {n}"));
             }
         }
         if self.search == Search::Single
@@ -264,12 +245,14 @@ impl PyConfig {
         {
             return bad(
                 "search=\"single\" is one detection pass: no shear_hypotheses, roll_hypotheses, \
-                 fallback_cascade or search_every_view"
-                    .into(),
+                 fallback_cascade or search_every_view",
             );
         }
         if self.search_every_view && self.search != Search::Quick {
-            return bad("search_every_view goes with search=\"quick\" (the thorough search always searches every view)".into());
+            return bad(
+                "search_every_view goes with search=\"quick\" (the thorough search always \
+                 searches every view)",
+            );
         }
         Ok(())
     }
@@ -309,64 +292,51 @@ pub enum Use {
     Video,
 }
 
-/// The corrector for `cfg`, with the built-in models, exactly as the CLI builds it from the same
-/// options (`load_models` in `src/bin/unshear/main.rs`; `unshear video` then sets equation 5
-/// when no shear model is given). The one function to change when the library's `Config` lands.
-pub fn build(cfg: &PyConfig, use_: Use) -> unshear::Result<Unshear> {
-    let defaults = DetectorParams::default();
-    let detector = FaceDetector::new(
-        Cascade::frontal_face_alt2(),
-        DetectorParams {
+/// The library's `Config` for `cfg`, on top of `Config::default()` (stills) or
+/// `Config::video()`, exactly as the CLI makes it from the same flags (`config_from` in
+/// `src/bin/unshear/models.rs`).
+pub fn to_config(cfg: &PyConfig, use_: Use) -> Config {
+    let base = match use_ {
+        Use::Stills => Config::default(),
+        Use::Video => Config::video(),
+    };
+    let single = cfg.search == Search::Single;
+    let mut c = Config {
+        locator: cfg.locator,
+        search: match cfg.search {
+            Search::Thorough => FaceSearch::Thorough,
+            Search::Quick | Search::Single => FaceSearch::Quick,
+        },
+        min_confidence: cfg.min_confidence,
+        refinements: cfg.refinements,
+        proposals: cfg.proposals,
+        search_every_view: cfg.search_every_view,
+        shear_hypotheses: cfg.shear_hypotheses.clone(),
+        roll_hypotheses: cfg.roll_hypotheses.clone(),
+        fallback_cascade: cfg.fallback_cascade && !single,
+        filter_type: cfg.filter_type,
+        detector: DetectorParams {
             min_size: (cfg.min_face, cfg.min_face),
             min_neighbors: cfg.min_neighbors,
             scale_factor: cfg.scale_factor,
-            ..defaults
+            ..DetectorParams::default()
         },
-    );
-    let mut unshear = Unshear::new(detector, EyeFilters::builtin(cfg.filter_type)?);
-    unshear.set_network(Some(LandmarkNet::embedded()?));
-    if cfg.proposals {
-        unshear.set_proposals(Some(ProposalNet::embedded()?));
-    }
-    unshear.set_locator(cfg.locator);
-    unshear.set_refinements(cfg.refinements);
-    let base = match use_ {
-        Use::Stills => Budget::STILL,
-        Use::Video => Budget::VIDEO,
-    };
-    unshear.set_network_budget(cfg.max_crops.map_or(base, |crops| Budget {
-        max_passes: usize::from(crops),
         ..base
-    }));
-    unshear.set_face_search(match cfg.search {
-        Search::Thorough => FaceSearch::Thorough,
-        Search::Quick | Search::Single => FaceSearch::Quick,
-    });
-    if let Some(ks) = &cfg.shear_hypotheses {
-        unshear.set_shear_hypotheses(ks);
-    }
-    if cfg.search_every_view {
-        unshear.set_search_every_view(true);
-    }
-    if let Some(rolls) = &cfg.roll_hypotheses {
-        unshear.set_roll_hypotheses(rolls);
-    }
-    if cfg.search == Search::Single {
-        unshear.set_shear_hypotheses(&[]);
-        unshear.set_roll_hypotheses(&[]);
-    } else if cfg.fallback_cascade {
-        unshear.set_fallback_detector(Some(FallbackDetector::frontal_face_default(
-            *unshear.detector().params(),
-        )));
-    }
-    let model = match (cfg.shear_model, use_) {
-        (Some(m), _) => Some(m),
-        (None, Use::Video) => Some(ShearModel::Equation5),
-        (None, Use::Stills) => None,
     };
-    if let Some(m) = model {
-        unshear.set_model(m);
+    if single {
+        c.shear_hypotheses = Some(Vec::new());
+        c.roll_hypotheses = Some(Vec::new());
     }
-    unshear.set_min_confidence(cfg.min_confidence);
-    Ok(unshear)
+    if let Some(model) = cfg.shear_model {
+        c.shear_model = model;
+    }
+    if let Some(crops) = cfg.max_crops {
+        c.network_budget.max_passes = usize::from(crops);
+    }
+    c
+}
+
+/// The corrector for `cfg` with the built-in models (`Config::validate` refuses bad values).
+pub fn build(cfg: &PyConfig, use_: Use) -> unshear::Result<Unshear> {
+    Unshear::new(to_config(cfg, use_))
 }

@@ -242,7 +242,7 @@ impl VideoCorrector {
             correct,
             k_source,
             interpolation,
-            network_budget: unshear.network_budget(),
+            network_budget: unshear.config().network_budget,
         };
         let stream = Stream::new(unshear, |u| VideoProcessor::new(u, options));
         Ok(Self {

@@ -95,7 +95,7 @@ def test_bad_frames_and_settings(faces: list[np.ndarray]) -> None:
         ({"smoothing_lag": 251}, "smoothing_lag"),
         ({"k_source": "best"}, "k_source"),
         ({"interp": "nearest"}, "interp"),
-        ({"min_confidence": 2}, "min_confidence"),
+        ({"min_confidence": 2}, "confidence 2 is outside 0 to 1"),
     ]:
         with pytest.raises(ValueError, match=match):
             unshear.VideoCorrector(**kwargs)  # type: ignore[arg-type]

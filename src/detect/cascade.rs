@@ -132,7 +132,7 @@ impl Cascade {
     /// OpenCV's `haarcascade_frontalface_default.xml` (Viola and Jones's stump cascade, 25
     /// stages), embedded in the library. It fires on some faces that alt2 misses (rolled, partly
     /// covered) and on more non-faces, so the pipeline asks it only on request
-    /// ([`crate::pipeline::FallbackDetector`]). Parsed once per process.
+    /// (the quick search's fallback cascade). Parsed once per process.
     pub fn frontal_face_default() -> Cascade {
         static CELL: OnceLock<Cascade> = OnceLock::new();
         Self::embedded(&CELL, FRONTAL_FACE_DEFAULT_XML)

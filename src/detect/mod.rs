@@ -24,6 +24,7 @@
 //!   (`pipeline::FaceSearch::Thorough`) adds to the cascade's boxes as candidates for faces
 //!   the cascade misses.
 
+pub mod boxes;
 mod cascade;
 mod grouping;
 mod integral;

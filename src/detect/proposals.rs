@@ -10,8 +10,8 @@
 //! `scripts/train_proposals.py`), so that it fires about equally on a face at any shear.
 //!
 //! The classifier sees a `window x window` square (32 px) spanning
-//! [`crate::landmarks::CROP_EYE_DISTANCES`] eye distances, with the eyes' midpoint
-//! [`crate::landmarks::EYES_ABOVE_CENTRE`] eye distances above its centre: the landmark crop's
+//! [`CROP_EYE_DISTANCES`] eye distances, with the eyes' midpoint
+//! [`EYES_ABOVE_CENTRE`] eye distances above its centre: the landmark crop's
 //! geometry at a third of its size, so a proposal is directly a start for the network. Its
 //! convolutions have no padding, so run over a whole pyramid level it gives, at every
 //! `stride`-th pixel, exactly what it gives on that window alone. The file format is
@@ -25,11 +25,11 @@ use image::GrayImage;
 use rayon::prelude::*;
 use serde::Deserialize;
 
+use crate::detect::boxes::{CROP_EYE_DISTANCES, EYES_ABOVE_CENTRE};
 use crate::error::{Error, Result};
 use crate::geometry::Point;
-use crate::landmarks::net::{conv_padded, Conv, Im2col, Tensor};
-use crate::landmarks::{CROP_EYE_DISTANCES, EYES_ABOVE_CENTRE};
 use crate::modelfile::ModelFile;
+use crate::nn::{conv_padded, Conv, Im2col, Tensor};
 
 /// The file's magic bytes.
 const MAGIC: &[u8; 8] = b"UNSHEARP";
@@ -601,10 +601,11 @@ mod tests {
         );
         let gray = image::open(path).expect("fixture").into_luma8();
         // The fixture's eyes as the landmark network locates them.
-        let landmarks = crate::landmarks::LandmarkNet::embedded().expect("built-in network");
+        let landmarks = crate::locate::network::LandmarkNet::embedded().expect("built-in network");
         let start = landmarks.frame(Point::new(160.0, 100.0), 60.0, 0.0, 0.0);
-        let mut ws = crate::landmarks::Workspace::default();
-        let face = crate::landmarks::locate(&landmarks, &gray, start, &mut ws).expect("a face");
+        let mut ws = crate::locate::network::Workspace::default();
+        let face =
+            crate::locate::network::locate(&landmarks, &gray, start, &mut ws).expect("a face");
         let net = ProposalNet::embedded().expect("built-in proposal classifier");
         for k in [0.0, 0.4, -0.4] {
             let shear = crate::geometry::Shear::about_middle(k, gray.height());

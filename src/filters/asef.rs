@@ -15,7 +15,7 @@
 //!
 //! Each exact filter over-fits its own patch; the average keeps what the patches share. ASEF
 //! therefore wants many patches, with the feature at different places so the filters learn to
-//! move the peak with it: training shows it translated crops ([`crate::train`]).
+//! move the peak with it: training shows it translated crops ([`crate::dev::train`]).
 
 use rustfft::num_complex::Complex32;
 

@@ -265,7 +265,7 @@ mod tests {
 /// Synthetic patches for the trainers' tests.
 #[cfg(test)]
 pub(crate) mod test_support {
-    use crate::train::SplitMix64;
+    use crate::rng::SplitMix64;
 
     /// White noise in [-1, 1), deterministic in `seed`.
     pub fn random_patch(n: usize, seed: u64) -> Vec<f32> {

@@ -5,7 +5,6 @@
 use rustfft::num_complex::Complex32;
 
 use super::correlate::Correlator;
-use super::umace::{hamming_windowed, normalize_patch};
 use super::{desired_output_into, Filter};
 
 /// FFT plans and per-patch buffers for a trainer of `size x size` patches.
@@ -83,4 +82,45 @@ impl TrainingSpectra {
             training_count,
         }
     }
+}
+
+/// Normalises a patch in place to zero mean and unit energy (sum of squares 1).
+/// A constant patch becomes all zeros.
+pub fn normalize_patch(patch: &mut [f32]) {
+    if patch.is_empty() {
+        return;
+    }
+    let n = patch.len() as f64;
+    let mean = patch.iter().map(|&v| f64::from(v)).sum::<f64>() / n;
+    let energy: f64 = patch.iter().map(|&v| (f64::from(v) - mean).powi(2)).sum();
+    let scale = if energy > 1e-12 {
+        1.0 / energy.sqrt()
+    } else {
+        0.0
+    };
+    for v in patch.iter_mut() {
+        *v = ((f64::from(*v) - mean) * scale) as f32;
+    }
+}
+
+/// The spectrum of `IDFT(spectrum)` (real part) multiplied by a 2-D periodic Hamming window
+/// centred on the patch centre: the spatial windowing of the module docs, shared by the ASEF and
+/// MOSSE trainers. `correlator` must be of the spectrum's size.
+pub fn hamming_windowed(correlator: &mut Correlator, spectrum: &[Complex32]) -> Vec<Complex32> {
+    let n = correlator.size();
+    let mut spatial = correlator.inverse_real(spectrum);
+    let window = hamming(n);
+    for y in 0..n {
+        for x in 0..n {
+            spatial[y * n + x] *= window[x] * window[y];
+        }
+    }
+    correlator.spectrum(&spatial)
+}
+
+/// Periodic Hamming window of length `n`, centred on sample `n / 2` (the patch centre).
+pub fn hamming(n: usize) -> Vec<f32> {
+    (0..n)
+        .map(|i| (0.54 - 0.46 * (2.0 * std::f64::consts::PI * i as f64 / n as f64).cos()) as f32)
+        .collect()
 }

@@ -11,8 +11,8 @@ use rayon::prelude::*;
 use super::temporal::{FilterParams, ShearSmoother, Update, DEFAULT_SMOOTHING_LAG};
 use super::tracker::{FaceTracker, TrackerParams, TrackerStats};
 use super::VideoFrame;
-use crate::landmarks::Budget;
-use crate::pipeline::combined_shear;
+use crate::locate::network::Budget;
+use crate::pipeline::{combined_shear, FaceStart};
 use crate::warp::Interpolation;
 use crate::{FaceReport, Rect, Result, Unshear};
 
@@ -136,7 +136,17 @@ impl<'a> VideoProcessor<'a> {
         let boxes = self.tracker.track(gray, view_k);
         let unshear = self.unshear;
         let budget = self.options.network_budget;
-        let estimate = |&b: &Rect| unshear.estimate_face_in_view_within(gray, b, view_k, budget);
+        let estimate = |&b: &Rect| {
+            unshear.estimate_face(
+                gray,
+                b,
+                FaceStart {
+                    k: view_k,
+                    roll: 0.0,
+                    budget: Some(budget),
+                },
+            )
+        };
         let faces: Vec<FaceReport> = if boxes.len() > 1 {
             boxes.par_iter().filter_map(estimate).collect()
         } else {

@@ -3,7 +3,6 @@
 use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
-use unshear::landmarks::Budget;
 
 /// Remove rolling-shutter skew (horizontal shear) from photos of people, using the face as the
 /// ruler.
@@ -36,47 +35,82 @@ pub enum Command {
 #[derive(Debug, Clone, Args)]
 pub struct ModelArgs {
     /// OpenCV Haar cascade XML to detect faces with [default: built-in frontalface_alt2].
-    #[arg(long, value_name = "FILE")]
+    #[arg(
+        help_heading = "Models",
+        hide_short_help = true,
+        long,
+        value_name = "FILE"
+    )]
     pub cascade: Option<PathBuf>,
     /// Filter file made by `unshear train` (its own type is used) [default: built-in].
-    #[arg(long, value_name = "PATH")]
+    #[arg(
+        help_heading = "Models",
+        hide_short_help = true,
+        long,
+        value_name = "PATH"
+    )]
     pub filters: Option<PathBuf>,
     /// Which built-in filter set to use [default: mosse, the built-in default type].
-    #[arg(long, value_enum, value_name = "TYPE", conflicts_with = "filters")]
+    #[arg(
+        help_heading = "Models",
+        hide_short_help = true,
+        long,
+        value_enum,
+        value_name = "TYPE",
+        conflicts_with = "filters"
+    )]
     pub filter_type: Option<FilterTypeArg>,
     /// What locates the eyes, nose and mouth: `network` (the built-in landmark network, which
     /// also reads the shear itself) or `filters` (the paper's correlation filters throughout,
     /// with --filter-type, --shear-model and --refine) [default: network].
-    #[arg(long, value_enum, value_name = "LOCATOR")]
+    #[arg(help_heading = "Models", long, value_enum, value_name = "LOCATOR")]
     pub locator: Option<LocatorArg>,
     /// Landmark network file written by `scripts/train_landmarks.py` [default: built-in].
-    #[arg(long, value_name = "PATH")]
+    #[arg(
+        help_heading = "Models",
+        hide_short_help = true,
+        long,
+        value_name = "PATH"
+    )]
     pub network: Option<PathBuf>,
     /// Refuse images with more pixels than this (checked before decoding).
-    #[arg(long, value_name = "N", default_value_t = unshear::imageio::DEFAULT_MAX_PIXELS)]
+    #[arg(help_heading = "Input and output", hide_short_help = true, long, value_name = "N", default_value_t = unshear::imageio::DEFAULT_MAX_PIXELS)]
     pub max_pixels: u64,
     /// Refinement passes: locate the features again in the face de-sheared by the last estimate.
-    #[arg(long, value_name = "N", default_value_t = unshear::pipeline::DEFAULT_REFINEMENTS)]
+    #[arg(
+        help_heading = "Correction",
+        hide_short_help = true,
+        long,
+        value_name = "N",
+        default_value_t = 0
+    )]
     pub refine: usize,
     /// How located points become k: `equation5` (the paper), `shear-roll` (eye line and nose
     /// axis, roll solved exactly), `shear-roll-yaw` (also the mouth axis, yaw extrapolated out)
     /// [default: shear-roll-yaw for stills, equation5 for `video`, where its lower per-frame
     /// noise matters more].
-    #[arg(long, value_name = "MODEL")]
+    #[arg(
+        help_heading = "Correction",
+        hide_short_help = true,
+        long,
+        value_name = "MODEL"
+    )]
     pub shear_model: Option<ShearModelArg>,
     /// Refuse a face's estimate (report `"k": null`, do not correct by it) below this
     /// confidence (0 to 1).
-    #[arg(long, value_name = "C", default_value_t = unshear::pipeline::DEFAULT_MIN_CONFIDENCE)]
+    #[arg(help_heading = "Correction", long, value_name = "C", default_value_t = unshear::estimate::DEFAULT_MIN_CONFIDENCE)]
     pub min_confidence: f64,
     /// Detect in the image as it is only (the paper's single pass): no de-sheared or turned
     /// retries when no face is found.
-    #[arg(long)]
+    #[arg(help_heading = "Face search", hide_short_help = true, long)]
     pub no_shear_search: bool,
     /// Shears whose de-sheared views are searched (with --quick only when the image as it is
     /// gives no face with an accepted estimate), comma-separated [default:
     /// 0.15,-0.15,0.3,-0.3,0.45,-0.45; with --quick 0.3,-0.3,0.5,-0.5, also the default of
     /// --locator filters].
     #[arg(
+        help_heading = "Face search",
+        hide_short_help = true,
         long,
         value_name = "K,...",
         value_delimiter = ',',
@@ -87,7 +121,7 @@ pub struct ModelArgs {
     /// Head rolls (degrees, positive: the head tilted clockwise on screen) whose turned views
     /// are searched, comma-separated [default: 12,-12,25,-25,45,-45; with --quick 12,-12, and
     /// only when no other view found a face].
-    #[arg(
+    #[arg(help_heading = "Face search", hide_short_help = true, 
         long,
         value_name = "DEG,...",
         value_delimiter = ',',
@@ -96,65 +130,75 @@ pub struct ModelArgs {
     )]
     pub roll_hypotheses: Option<Vec<f64>>,
     /// No turned views for rolled heads (the de-sheared views are still searched).
-    #[arg(long)]
+    #[arg(help_heading = "Face search", hide_short_help = true, long)]
     pub no_roll_search: bool,
-    /// The quick face search: the image as it is, and the de-sheared and turned views only when
-    /// it gives no trusted face. On a 1920x1080 frame with a face 5.7 to 8.7 times faster than
+    /// Quick face search: other views only when the image as it is shows no trusted face.
+    ///
+    /// The image as it is, and the de-sheared and turned views only when it gives no trusted
+    /// face. On a 1920x1080 frame with a face 5.7 to 8.7 times faster than
     /// the default thorough search (every view of every image, heads rolled up to about 55
     /// degrees, the network judging lenient detections and the detector's near misses), about as
-    /// slow on one without; the thorough search finds about 4% more faces (see the README's
-    /// *Detection under shear* and *Performance*).
-    #[arg(long)]
+    /// slow on one without; the thorough search finds about 4% more faces (docs/accuracy.md,
+    /// docs/performance.md).
+    #[arg(help_heading = "Face search", long)]
     pub quick: bool,
     /// No face proposals: the thorough search takes candidate boxes from the cascade only,
-    /// not also from the built-in window classifier trained on sheared faces (see the README's
-    /// *Detection under shear*, "Face proposals"). --quick uses none anyway.
-    #[arg(long)]
+    /// not also from the built-in window classifier trained on sheared faces (docs/how-it-works.md). --quick uses none anyway.
+    #[arg(help_heading = "Face search", hide_short_help = true, long)]
     pub no_proposals: bool,
-    /// Most crops the landmark network reads per face, each re-centred on the eyes found in
-    /// the one before with their shear and roll removed (at least 1): fewer is faster, about
-    /// one forward pass each, and less accurate (see the README's *Performance*) [default: 8
+    /// Most crops the landmark network reads per face: fewer is faster and less accurate.
+    ///
+    /// Each crop is re-centred on the eyes found in the one before with their shear and roll removed (at least 1): fewer is faster, about
+    /// one forward pass each, and less accurate (docs/performance.md) [default: 8
     /// for stills, stopping earlier when the estimate settles; 2 for `video`].
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..=64))]
+    #[arg(help_heading = "Correction", long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..=64))]
     pub max_crops: Option<u16>,
     /// With --quick: search every de-sheared and turned view of every image anyway, not only
     /// when the views before gave no trusted face (the thorough search always does).
-    #[arg(long, conflicts_with = "no_shear_search", requires = "quick")]
+    #[arg(
+        help_heading = "Face search",
+        hide_short_help = true,
+        long,
+        conflicts_with = "no_shear_search",
+        requires = "quick"
+    )]
     pub search_every_view: bool,
     /// Also ask the built-in second cascade (OpenCV's frontalface_default) when the main one
     /// finds no face with an accepted estimate: more faces found, but the extra ones are hard
-    /// and their estimates often wrong (see the README's *Accuracy*). Not with --cascade or
+    /// and their estimates often wrong (docs/accuracy.md). Not with --cascade or
     /// --no-shear-search.
-    #[arg(long, conflicts_with_all = ["cascade", "no_shear_search"])]
+    #[arg(help_heading = "Face search", hide_short_help = true, long, conflicts_with_all = ["cascade", "no_shear_search"])]
     pub fallback_cascade: bool,
-    /// Smallest face to look for: the detector's minimum box width and height, in pixels
-    /// [default: the cascade's window, 20 px, as OpenCV; `eval shear`: 1.5 times
+    /// Smallest face to look for, pixels wide (larger is faster).
+    ///
+    /// The detector's minimum box width and height, in pixels [default: the cascade's window, 20 px, as OpenCV; `eval shear`: 1.5 times
     /// --min-eye-distance]. Larger is faster: most of the detector's time goes to the smallest
     /// boxes, and faces under about 60 px are too small to measure the shear well anyway.
-    #[arg(long, value_name = "PX")]
+    #[arg(help_heading = "Face search", long, value_name = "PX")]
     pub min_face: Option<u32>,
     /// The detector's minimum of merged raw hits for a face (OpenCV's `minNeighbors`): lower
     /// finds more faces and more false ones [default: 3, as OpenCV; the thorough search with
     /// the network asks for at most 1, as the network's face score rejects false boxes].
-    #[arg(long, value_name = "N")]
+    #[arg(
+        help_heading = "Face search",
+        hide_short_help = true,
+        long,
+        value_name = "N"
+    )]
     pub min_neighbors: Option<u32>,
     /// The detector's scale step (OpenCV's `scaleFactor`, above 1): smaller finds more faces
     /// and takes longer [default: 1.1, as OpenCV].
-    #[arg(long, value_name = "F")]
+    #[arg(
+        help_heading = "Face search",
+        hide_short_help = true,
+        long,
+        value_name = "F"
+    )]
     pub scale_factor: Option<f64>,
     /// Worker threads [default: one per core].
-    #[arg(long, short = 'j', value_name = "N")]
-    pub jobs: Option<usize>,
-}
-
-impl ModelArgs {
-    /// `base` (the stills' or video's budget) held to `--max-crops` crops when it is given.
-    pub fn network_budget(&self, base: Budget) -> Budget {
-        self.max_crops.map_or(base, |crops| Budget {
-            max_passes: usize::from(crops),
-            ..base
-        })
-    }
+    #[arg(help_heading = "Input and output", long, short = 'j', value_name = "N",
+          value_parser = clap::value_parser!(u16).range(1..))]
+    pub jobs: Option<u16>,
 }
 
 /// `--locator` values.
@@ -203,13 +247,16 @@ pub struct EstimateArgs {
     #[arg(required = true, value_name = "IN")]
     pub inputs: Vec<PathBuf>,
     /// Print one JSON object per input, one per line.
-    #[arg(long)]
+    #[arg(help_heading = "Input and output", long)]
     pub json: bool,
+    /// Follow links to folders when walking folders (links to files are always followed).
+    #[arg(help_heading = "Input and output", short = 'L', long = "follow")]
+    pub follow: bool,
     /// Process only slice I of N of the inputs (0-based; the files sorted by path, cut into N
     /// contiguous slices), so that N processes share a batch with no coordinator. `auto`: I
     /// from $JOB_COMPLETION_INDEX (a Kubernetes Indexed Job), N from $JOB_COMPLETIONS;
     /// `auto/N`: N given.
-    #[arg(long, value_name = "I/N|auto", value_parser = parse_shard)]
+    #[arg(help_heading = "Input and output", long, value_name = "I/N|auto", value_parser = parse_shard)]
     pub shard: Option<ShardArg>,
     #[command(flatten)]
     pub model: ModelArgs,
@@ -223,6 +270,7 @@ pub struct CorrectArgs {
     pub inputs: Vec<PathBuf>,
     /// Output file (one input only) [default: IN with `.unshear` before the extension].
     #[arg(
+        help_heading = "Input and output",
         short = 'o',
         long = "output",
         value_name = "OUT",
@@ -230,31 +278,45 @@ pub struct CorrectArgs {
     )]
     pub output: Option<PathBuf>,
     /// Write outputs into this folder (created if needed), keeping file names and sub-folders.
-    #[arg(long, value_name = "DIR")]
+    #[arg(help_heading = "Input and output", long, value_name = "DIR")]
     pub out_dir: Option<PathBuf>,
     /// Use this shear instead of estimating it.
-    #[arg(long, value_name = "K", allow_negative_numbers = true)]
+    #[arg(
+        help_heading = "Correction",
+        long,
+        value_name = "K",
+        allow_negative_numbers = true
+    )]
     pub k: Option<f64>,
     /// What to correct.
-    #[arg(long, value_enum, default_value_t = RegionArg::Image)]
+    #[arg(help_heading = "Correction", long, value_enum, default_value_t = RegionArg::Image)]
     pub region: RegionArg,
     /// Output size: the input's, expanded so nothing is cut off, or cropped to valid pixels.
-    #[arg(long, value_enum, default_value_t = CanvasArg::Same)]
+    #[arg(help_heading = "Correction", long, value_enum, default_value_t = CanvasArg::Same)]
     pub canvas: CanvasArg,
     /// Row resampling.
-    #[arg(long, value_enum, default_value_t = InterpArg::Linear)]
+    #[arg(help_heading = "Correction", long, value_enum, default_value_t = InterpArg::Linear)]
     pub interp: InterpArg,
     /// Also write a PNG showing the face box, eyes, nostrils and estimated face axis (one input).
-    #[arg(long, value_name = "PNG")]
+    #[arg(help_heading = "Input and output", long, value_name = "PNG")]
     pub annotate: Option<PathBuf>,
     /// Print one JSON object per input, one per line.
-    #[arg(long)]
+    #[arg(help_heading = "Input and output", long)]
     pub json: bool,
     /// Replace existing output files (inputs are never overwritten).
-    #[arg(long)]
+    #[arg(help_heading = "Input and output", long)]
     pub force: bool,
+    /// Follow links to folders when walking folders (links to files are always followed).
+    #[arg(help_heading = "Input and output", short = 'L', long = "follow")]
+    pub follow: bool,
     /// Process only slice I of N of the inputs (see `estimate --shard`).
-    #[arg(long, value_name = "I/N|auto", value_parser = parse_shard, conflicts_with_all = ["output", "annotate"])]
+    #[arg(
+        help_heading = "Input and output",
+        long,
+        value_name = "I/N|auto",
+        value_parser = parse_shard,
+        conflicts_with_all = ["output", "annotate"]
+    )]
     pub shard: Option<ShardArg>,
     #[command(flatten)]
     pub model: ModelArgs,
@@ -365,7 +427,7 @@ pub struct EvalShearArgs {
     pub out: Option<PathBuf>,
     /// Crop each image to this many nominal face boxes around its annotated faces before
     /// shearing (speed; 0: shear the whole image).
-    #[arg(long, value_name = "F", default_value_t = unshear::eval::shear::DEFAULT_CONTEXT)]
+    #[arg(long, value_name = "F", default_value_t = unshear::dev::eval::shear::DEFAULT_CONTEXT)]
     pub context: f64,
     #[command(flatten)]
     pub model: ModelArgs,

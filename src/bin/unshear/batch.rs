@@ -26,39 +26,62 @@ pub struct Input {
     pub root: Option<PathBuf>,
 }
 
-/// Expands folders (recursively, in name order) into image files; a path that cannot be walked
-/// becomes an input that fails with its own error, so the rest of the batch goes on.
+/// Expands folders (recursively, in name order) into image files; a path that cannot be walked,
+/// and a folder that holds no image, become inputs that fail with their own error, so the rest
+/// of the batch goes on.
 ///
-/// Files whose stem ends in `.unshear` (this tool's own outputs) are skipped in folders, so
-/// running twice over a folder does not correct the corrections.
-pub fn collect_inputs(paths: &[PathBuf]) -> Vec<Result<Input, (PathBuf, String)>> {
+/// Links to files inside folders are followed; links to folders only with `follow_links`
+/// (`-L`), where a link loop is reported as the error of the link that closes it. Files whose
+/// stem ends in `.unshear` (this tool's own outputs) are skipped in folders, so running twice
+/// over a folder does not correct the corrections.
+pub fn collect_inputs(
+    paths: &[PathBuf],
+    follow_links: bool,
+) -> Vec<Result<Input, (PathBuf, String)>> {
     let mut out = Vec::new();
     for p in paths {
-        if p.is_dir() {
-            // Symbolic links are not followed, so link loops cannot trap the walk.
-            for entry in walkdir::WalkDir::new(p)
-                .follow_links(false)
-                .sort_by_file_name()
-            {
-                match entry {
-                    Ok(e) if e.file_type().is_file() && is_image_name(e.path()) => {
-                        out.push(Ok(Input {
-                            path: e.path().to_path_buf(),
-                            root: Some(p.clone()),
-                        }))
-                    }
-                    Ok(_) => {}
-                    Err(err) => {
-                        let at = err.path().unwrap_or(p).to_path_buf();
-                        out.push(Err((at, err.to_string())));
-                    }
-                }
-            }
-        } else {
+        if !p.is_dir() {
             out.push(Ok(Input {
                 path: p.clone(),
                 root: None,
             }));
+            continue;
+        }
+        let before = out.len();
+        let walk = walkdir::WalkDir::new(p)
+            .follow_links(follow_links)
+            .sort_by_file_name();
+        for entry in walk {
+            match entry {
+                Ok(e) => {
+                    // Without `follow_links` a link is reported as a link: take it when it
+                    // leads to a file (`metadata` follows it).
+                    let is_file = e.file_type().is_file()
+                        || (e.path_is_symlink()
+                            && std::fs::metadata(e.path()).is_ok_and(|m| m.is_file()));
+                    if is_file && is_image_name(e.path()) {
+                        out.push(Ok(Input {
+                            path: e.path().to_path_buf(),
+                            root: Some(p.clone()),
+                        }));
+                    }
+                }
+                Err(err) => {
+                    let at = err.path().unwrap_or(p).to_path_buf();
+                    out.push(Err((at, err.to_string())));
+                }
+            }
+        }
+        if out.len() == before {
+            let hint = if follow_links {
+                ""
+            } else {
+                " (links to folders are followed with -L/--follow)"
+            };
+            out.push(Err((
+                p.clone(),
+                format!("no image files in this folder{hint}"),
+            )));
         }
     }
     out
@@ -173,7 +196,7 @@ mod tests {
         }
         std::fs::create_dir(dir.path().join("sub")).expect("mkdir");
         std::fs::write(dir.path().join("sub/c.webp"), b"x").expect("write");
-        let found: Vec<String> = collect_inputs(&[dir.path().to_path_buf()])
+        let found: Vec<String> = collect_inputs(&[dir.path().to_path_buf()], false)
             .into_iter()
             .filter_map(Result::ok)
             .map(|i| {
@@ -224,6 +247,63 @@ mod tests {
             let (lo, hi) = (sizes.iter().min().copied(), sizes.iter().max().copied());
             proptest::prop_assert!(hi.unwrap_or(0) - lo.unwrap_or(0) <= 1);
         }
+    }
+
+    /// The names found under `root` (walking it with `follow`), and the errors, as text.
+    #[cfg(unix)]
+    fn walk(root: &Path, follow: bool) -> (Vec<String>, Vec<String>) {
+        let (mut found, mut failed) = (Vec::new(), Vec::new());
+        for r in collect_inputs(&[root.to_path_buf()], follow) {
+            match r {
+                Ok(i) => found.push(
+                    i.path
+                        .strip_prefix(root)
+                        .expect("under root")
+                        .display()
+                        .to_string(),
+                ),
+                Err((p, e)) => failed.push(format!("{}: {e}", p.display())),
+            }
+        }
+        (found, failed)
+    }
+
+    /// A data set kept as a folder of links: links to files are taken, links to folders only
+    /// with `-L`, where a loop is an error of its own and the rest is still walked; a folder
+    /// with no image is an error naming it, not silence.
+    #[cfg(unix)]
+    #[test]
+    fn links_to_files_are_followed_and_links_to_folders_with_follow() {
+        use std::os::unix::fs::symlink;
+        let store = tempfile::tempdir().expect("temp dir");
+        std::fs::write(store.path().join("one.jpg"), b"x").expect("write");
+        std::fs::create_dir(store.path().join("more")).expect("mkdir");
+        std::fs::write(store.path().join("more/two.png"), b"x").expect("write");
+        let farm = tempfile::tempdir().expect("temp dir");
+        symlink(store.path().join("one.jpg"), farm.path().join("link.jpg")).expect("link");
+        symlink(store.path().join("more"), farm.path().join("dir")).expect("link");
+        symlink(farm.path(), farm.path().join("loop")).expect("link");
+        symlink(
+            store.path().join("gone.jpg"),
+            farm.path().join("dangling.jpg"),
+        )
+        .expect("link");
+        let (found, failed) = walk(farm.path(), false);
+        assert_eq!(found, ["link.jpg"]);
+        assert!(failed.is_empty(), "{failed:?}");
+        let (found, failed) = walk(farm.path(), true);
+        assert_eq!(found, ["dir/two.png", "link.jpg"]);
+        assert_eq!(
+            failed.len(),
+            2,
+            "the loop and the dangling link: {failed:?}"
+        );
+        let empty = tempfile::tempdir().expect("temp dir");
+        symlink(store.path().join("more"), empty.path().join("dir")).expect("link");
+        let (found, failed) = walk(empty.path(), false);
+        assert!(found.is_empty());
+        assert_eq!(failed.len(), 1);
+        assert!(failed[0].contains("no image files") && failed[0].contains("-L"));
     }
 
     #[test]

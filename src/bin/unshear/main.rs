@@ -7,6 +7,7 @@
 mod args;
 mod batch;
 mod interrupt;
+mod models;
 mod report;
 mod video;
 
@@ -19,17 +20,14 @@ use clap::Parser;
 
 use args::{
     Cli, Command, CorrectArgs, DistortArgs, EstimateArgs, EvalCommand, EvalNostrilsArgs,
-    EvalRecognitionArgs, EvalShearArgs, ModelArgs, TrainArgs,
+    EvalRecognitionArgs, EvalShearArgs, TrainArgs,
 };
 use batch::{collect_inputs, run_ordered, shard, Collected, Input};
+use models::load_models;
 use report::JsonLine;
-use unshear::detect::{Cascade, DetectorParams, FaceDetector, ProposalNet};
-use unshear::filters::{EyeFilters, FilterType};
+use unshear::filters::FilterType;
 use unshear::imageio::{self, WriteOptions};
-use unshear::landmarks::{Budget, LandmarkNet};
-use unshear::pipeline::{CorrectOptions, ImageReport, Region};
-use unshear::pipeline::{FaceSearch, FallbackDetector};
-use unshear::{Shear, Unshear};
+use unshear::{Config, CorrectOptions, ImageReport, Region, Shear, Unshear};
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
@@ -61,110 +59,6 @@ fn main() -> ExitCode {
             ExitCode::from(1)
         }
     }
-}
-
-/// Builds the corrector from `--cascade`/`--filters` (built-in defaults otherwise) and sizes the
-/// thread pool.
-fn load_models(m: &ModelArgs) -> Result<Unshear> {
-    if let Some(jobs) = m.jobs {
-        // Only fails if a global pool exists already, which nothing here creates before.
-        let _ = rayon::ThreadPoolBuilder::new()
-            .num_threads(jobs.max(1))
-            .build_global();
-    }
-    let cascade = match &m.cascade {
-        Some(p) => {
-            Cascade::from_file(p).with_context(|| format!("loading cascade {}", p.display()))?
-        }
-        None => Cascade::frontal_face_alt2(),
-    };
-    let min_face = m.min_face.unwrap_or(0);
-    let defaults = DetectorParams::default();
-    if let Some(f) = m.scale_factor {
-        if !(f.is_finite() && f > 1.0 && f <= 2.0) {
-            usage_error("--scale-factor must be above 1 and at most 2");
-        }
-    }
-    let detector = FaceDetector::new(
-        cascade,
-        DetectorParams {
-            min_size: (min_face, min_face),
-            min_neighbors: m.min_neighbors.unwrap_or(defaults.min_neighbors),
-            scale_factor: m.scale_factor.unwrap_or(defaults.scale_factor),
-            ..defaults
-        },
-    );
-    let filters = match &m.filters {
-        Some(p) => {
-            EyeFilters::from_file(p).with_context(|| format!("loading filters {}", p.display()))?
-        }
-        None => {
-            let kind = m.filter_type.map_or(FilterType::DEFAULT, FilterType::from);
-            EyeFilters::builtin(kind)
-                .with_context(|| format!("loading the built-in {kind} filters"))?
-        }
-    };
-    let mut unshear = Unshear::new(detector, filters);
-    let network = match &m.network {
-        Some(p) => {
-            let bytes =
-                std::fs::read(p).with_context(|| format!("reading network {}", p.display()))?;
-            LandmarkNet::from_bytes(&bytes)
-                .with_context(|| format!("loading network {}", p.display()))?
-        }
-        None => LandmarkNet::embedded().context("loading the built-in landmark network")?,
-    };
-    unshear.set_network(Some(network));
-    if !m.no_proposals {
-        let proposals =
-            ProposalNet::embedded().context("loading the built-in face proposal classifier")?;
-        unshear.set_proposals(Some(proposals));
-    }
-    if let Some(locator) = m.locator {
-        unshear.set_locator(locator.into());
-    }
-    unshear.set_refinements(m.refine);
-    unshear.set_network_budget(m.network_budget(Budget::STILL));
-    if !(0.0..=1.0).contains(&m.min_confidence) {
-        bail!("--min-confidence {} is outside 0 to 1", m.min_confidence);
-    }
-    // The face search first: it sets its own views, which the options below may change.
-    unshear.set_face_search(if m.quick || m.no_shear_search {
-        FaceSearch::Quick
-    } else {
-        FaceSearch::Thorough
-    });
-    if let Some(hypotheses) = &m.shear_hypotheses {
-        if hypotheses.iter().any(|k| !k.is_finite() || k.abs() > 2.0) {
-            usage_error("--shear-hypotheses must be numbers between -2 and 2");
-        }
-        unshear.set_shear_hypotheses(hypotheses);
-    }
-    if m.search_every_view {
-        unshear.set_search_every_view(true);
-    }
-    if let Some(rolls) = &m.roll_hypotheses {
-        if rolls.iter().any(|r| !r.is_finite() || r.abs() >= 90.0) {
-            usage_error("--roll-hypotheses must be degrees between -90 and 90");
-        }
-        unshear.set_roll_hypotheses(rolls);
-    }
-    if m.no_roll_search {
-        unshear.set_roll_hypotheses(&[]);
-    }
-    if m.no_shear_search {
-        unshear.set_shear_hypotheses(&[]);
-        unshear.set_roll_hypotheses(&[]);
-    } else if m.fallback_cascade {
-        unshear.set_fallback_detector(Some(FallbackDetector::frontal_face_default(
-            *unshear.detector().params(),
-        )));
-    }
-    if let Some(model) = m.shear_model {
-        unshear.set_model(model.into());
-    }
-    unshear.set_min_confidence(m.min_confidence);
-    Ok(unshear)
 }
 
 /// Prints a line to stdout, ignoring a closed pipe (e.g. `| head`) rather than panicking.
@@ -236,8 +130,8 @@ fn error_chain(e: &anyhow::Error) -> String {
 }
 
 /// The inputs named, or with `--shard` this process's slice of them.
-fn inputs_of(paths: &[PathBuf], shard_arg: Option<args::ShardArg>) -> Vec<Collected> {
-    let inputs = collect_inputs(paths);
+fn inputs_of(paths: &[PathBuf], follow: bool, shard_arg: Option<args::ShardArg>) -> Vec<Collected> {
+    let inputs = collect_inputs(paths, follow);
     let Some(spec) = shard_arg else {
         return inputs;
     };
@@ -248,8 +142,8 @@ fn inputs_of(paths: &[PathBuf], shard_arg: Option<args::ShardArg>) -> Vec<Collec
 }
 
 fn estimate(a: EstimateArgs) -> Result<bool> {
-    let unshear = load_models(&a.model)?;
-    let inputs = inputs_of(&a.inputs, a.shard);
+    let unshear = load_models(&a.model, Config::default())?;
+    let inputs = inputs_of(&a.inputs, a.follow, a.shard);
     let mut all_ok = true;
     let done = run_ordered(
         &inputs,
@@ -388,7 +282,7 @@ fn create_parent(path: &Path) -> Result<()> {
 }
 
 fn correct(a: CorrectArgs) -> Result<bool> {
-    let inputs = inputs_of(&a.inputs, a.shard);
+    let inputs = inputs_of(&a.inputs, a.follow, a.shard);
     if inputs.len() > 1 && a.output.is_some() {
         usage_error("-o/--output takes one input; use --out-dir for several");
     }
@@ -400,7 +294,7 @@ fn correct(a: CorrectArgs) -> Result<bool> {
             usage_error("--k must be a finite number");
         }
     }
-    let unshear = load_models(&a.model)?;
+    let unshear = load_models(&a.model, Config::default())?;
     // Every input is protected from being written over, whatever the output naming does.
     let protected: Vec<PathBuf> = inputs
         .iter()
@@ -481,17 +375,17 @@ fn distort(a: DistortArgs) -> Result<()> {
 }
 
 fn train(a: TrainArgs) -> Result<()> {
-    use unshear::dataset::{CaltechWebFaces, FaceDataset};
+    use unshear::dev::dataset::{CaltechWebFaces, FaceDataset};
     let faces = CaltechWebFaces::new(&a.data)
         .faces()
         .with_context(|| format!("reading the data set in {}", a.data.display()))?;
-    let options = unshear::train::TrainOptions {
+    let options = unshear::dev::train::TrainOptions {
         min_eye_distance: a.min_eye_distance,
         mirror: !a.no_mirror,
         filter_type: a.filter_type.map_or(FilterType::DEFAULT, FilterType::from),
         ..Default::default()
     };
-    let (filters, summary) = unshear::train::train_eye_filters(faces, &options)?;
+    let (filters, summary) = unshear::dev::train::train_eye_filters(faces, &options)?;
     for u in &summary.unreadable {
         eprintln!("unshear: skipped {u}");
     }
@@ -525,8 +419,8 @@ fn train(a: TrainArgs) -> Result<()> {
 }
 
 fn eval_shear(a: EvalShearArgs) -> Result<()> {
-    use unshear::dataset::{CaltechWebFaces, FaceDataset};
-    use unshear::eval::{evaluate_shear_in_context, ShearEvalOptions};
+    use unshear::dev::dataset::{CaltechWebFaces, FaceDataset};
+    use unshear::dev::eval::{evaluate_shear_in_context, ShearEvalOptions};
     let mut model = a.model.clone();
     // Every evaluated face's box is about 2.6 eye distances wide (the detector's box for a
     // face): skipping boxes under 1.5 eye distances loses none of them and saves most of the
@@ -534,7 +428,7 @@ fn eval_shear(a: EvalShearArgs) -> Result<()> {
     model.min_face = model
         .min_face
         .or(Some((1.5 * a.min_eye_distance.max(0.0)).floor() as u32));
-    let unshear = load_models(&model)?;
+    let unshear = load_models(&model, Config::default())?;
     let annotated = CaltechWebFaces::new(&a.data)
         .faces()
         .with_context(|| format!("reading the data set in {}", a.data.display()))?;
@@ -581,11 +475,11 @@ fn progress_bar(len: u64) -> indicatif::ProgressBar {
 }
 
 fn eval_nostrils(a: EvalNostrilsArgs) -> Result<()> {
-    use unshear::dataset::DlibLandmarks;
+    use unshear::dev::dataset::DlibLandmarks;
     if !(a.upscale.is_finite() && a.upscale > 0.0 && a.upscale <= 8.0) {
         usage_error("--upscale must be a number in (0, 8]");
     }
-    let unshear = load_models(&a.model)?;
+    let unshear = load_models(&a.model, Config::default())?;
     let mut faces = Vec::new();
     for xml in &a.xml {
         faces.extend(
@@ -594,8 +488,12 @@ fn eval_nostrils(a: EvalNostrilsArgs) -> Result<()> {
                 .with_context(|| format!("reading {}", xml.display()))?,
         );
     }
-    let result =
-        unshear::eval::nostrils::evaluate_nostrils(&unshear, &faces, a.upscale, a.model.max_pixels);
+    let result = unshear::dev::eval::nostrils::evaluate_nostrils(
+        &unshear,
+        &faces,
+        a.upscale,
+        a.model.max_pixels,
+    );
     for u in &result.unreadable {
         eprintln!("unshear: skipped {u}");
     }
@@ -604,12 +502,12 @@ fn eval_nostrils(a: EvalNostrilsArgs) -> Result<()> {
 }
 
 fn eval_recognition(a: EvalRecognitionArgs) -> Result<()> {
-    use unshear::dataset::{celeba_identities, yale_identities};
-    use unshear::eval::recognition::{evaluate_recognition, RecognitionOptions};
+    use unshear::dev::dataset::{celeba_identities, yale_identities};
+    use unshear::dev::eval::recognition::{evaluate_recognition, RecognitionOptions};
     if a.gallery == 0 || a.grid == 0 || a.grid > 8 || a.k.iter().any(|k| !k.is_finite()) {
         usage_error("--gallery must be >= 1, --grid in 1..=8 and every --k finite");
     }
-    let unshear = load_models(&a.model)?;
+    let unshear = load_models(&a.model, Config::default())?;
     let items = if a.data.join("identity.txt").is_file() {
         celeba_identities(&a.data)
     } else {

@@ -14,10 +14,10 @@ use clap::{Args, ValueEnum};
 use serde::Serialize;
 
 use crate::args::{InterpArg, ModelArgs};
+use crate::models::load_models;
 use crate::report::{face, r4, JsonFace};
-use crate::{load_models, usage_error};
+use crate::usage_error;
 use unshear::imageio::WriteOptions;
-use unshear::landmarks::Budget;
 use unshear::video::frames::{list_frames, FrameFolderReader, FrameFolderWriter};
 use unshear::video::temporal::{FilterParams, DEFAULT_SMOOTHING_LAG};
 use unshear::video::tracker::TrackerParams;
@@ -211,13 +211,7 @@ pub fn video(a: VideoArgs) -> Result<()> {
             "--smoothing-lag must be at most {MAX_SMOOTHING_LAG} frames (frames are held in memory)"
         ));
     }
-    let mut unshear = load_models(&a.model)?;
-    if a.model.shear_model.is_none() {
-        // Per frame, equation 5 is the steadiest of the models (synthetic clip in
-        // tests/video.rs: raw rms error 0.015, against 0.025 with shear-roll and 0.048 with
-        // shear-roll-yaw, whose roll and mouth terms add frame-to-frame noise).
-        unshear.set_model(unshear::estimate::ShearModel::Equation5);
-    }
+    let unshear = load_models(&a.model, unshear::Config::video())?;
     let input = open_input(&a)?;
     let fps = match &input {
         Input::Y4m(_, _, f) => f.fps(),
@@ -238,7 +232,7 @@ pub fn video(a: VideoArgs) -> Result<()> {
             KSourceArg::Raw => KSource::Raw,
         },
         interpolation: a.interp.into(),
-        network_budget: a.model.network_budget(Budget::VIDEO),
+        network_budget: unshear.config().network_budget,
     };
     let mut processor = VideoProcessor::new(&unshear, options);
     let (mut source, header, protected, made): (Box<dyn FrameSource>, _, _, _) = match input {

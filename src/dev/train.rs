@@ -1,6 +1,6 @@
 //! Training the eye filters (`unshear train`): from faces with annotated eye centres, each face is
 //! normalised to 150 px wide through the face box the detector would draw for those eyes
-//! ([`crate::features::face_box_from_eyes`]), a `64 x 64` patch is cut centred on each eye, and
+//! ([`crate::detect::boxes::face_box_from_eyes`]), a `64 x 64` patch is cut centred on each eye, and
 //! one filter is synthesised per eye, one for the nose from patches centred on the annotated
 //! nose point and one for the mouth from patches centred on the annotated mouth centre, of the
 //! type asked for ([`TrainOptions::filter_type`]: UMACE, ASEF or MOSSE, see
@@ -21,13 +21,13 @@
 
 use rayon::prelude::*;
 
-use crate::dataset::{by_image, AnnotatedFace};
+use crate::detect::boxes::face_box_from_eyes;
+use crate::dev::dataset::{by_image, AnnotatedFace};
 use crate::error::{Error, Result};
-use crate::features::{
-    face_box_from_eyes, NormalizedFace, FACE_WIDTH, MOUTH_BELOW_EYES, NOSE_BELOW_EYES,
-};
 use crate::filters::{EyeFilters, FilterTrainer, FilterType};
 use crate::imageio;
+use crate::locate::filters::{NormalizedFace, FACE_WIDTH, MOUTH_BELOW_EYES, NOSE_BELOW_EYES};
+use crate::rng::SplitMix64;
 
 /// Side of the eye patches and filters (the paper's 64).
 pub const PATCH_SIZE: usize = 64;
@@ -37,37 +37,12 @@ pub const PATCH_SIZE: usize = 64;
 pub const TRANSLATIONS: usize = 4;
 
 /// Largest translation of a training crop, pixels of the 150-px normalised face, each axis: 8,
-/// about the run-time eye search window's reach ([`crate::features::EYE_SEARCH`], 14 x 12) less
+/// about the run-time eye search window's reach ([`crate::locate::filters::EYE_SEARCH`], 14 x 12) less
 /// a margin, so the filters learn peaks where they will be looked for.
 pub const MAX_TRANSLATION: f64 = 8.0;
 
 /// Images decoded at a time: bounds memory (ASEF and MOSSE keep five crops per feature).
 const CHUNK: usize = 128;
-
-/// SplitMix64 (Steele, Lea & Flood 2014): a few lines, written here rather than taken from
-/// `rand` because the committed filters must be reproducible byte for byte, and `rand`'s
-/// seeded generators do not promise the same stream across versions.
-#[derive(Debug, Clone)]
-pub(crate) struct SplitMix64(u64);
-
-impl SplitMix64 {
-    pub(crate) fn new(seed: u64) -> Self {
-        Self(seed)
-    }
-
-    pub(crate) fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [0, 1), 53 bits.
-    pub(crate) fn next_f64(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
 
 /// Seed of the translations: the generator for image `i` of the data set is seeded with
 /// `TRANSLATION_SEED + i`.
@@ -294,7 +269,7 @@ fn face_crops(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dataset::AnnotatedFace;
+    use crate::dev::dataset::AnnotatedFace;
     use crate::filters::{normalize_patch, Correlator};
     use crate::Point;
 

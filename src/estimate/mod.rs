@@ -38,6 +38,10 @@
 //! The points are taken in the input image's own pixels; a uniform rescale of the image scales
 //! every vector alike and leaves `k` and the roll unchanged.
 
+pub mod confidence;
+
+pub use confidence::DEFAULT_MIN_CONFIDENCE;
+
 use crate::geometry::Point;
 
 /// The shortest eye-to-nose height (pixels) for which a side's estimate is used: below it a

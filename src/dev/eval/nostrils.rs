@@ -16,10 +16,11 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::{fmt3, pct};
-use crate::dataset::LandmarkFace;
+use crate::dev::dataset::LandmarkFace;
 use crate::geometry::Point;
 use crate::imageio;
-use crate::pipeline::{median, Unshear};
+use crate::pipeline::Unshear;
+use crate::stats::median;
 
 /// One annotated face.
 #[derive(Debug, Clone, PartialEq, Serialize)]

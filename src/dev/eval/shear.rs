@@ -24,11 +24,12 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::{fmt3, mean, pct};
-use crate::dataset::{by_image, AnnotatedFace};
+use crate::dev::dataset::{by_image, AnnotatedFace};
 use crate::error::{Error, Result};
 use crate::geometry::{Point, Shear};
 use crate::imageio;
-use crate::pipeline::{median, Unshear};
+use crate::pipeline::Unshear;
+use crate::stats::median;
 use crate::warp::{try_apply_shear, Canvas, Interpolation};
 
 /// Default context crop: 3 nominal face boxes around each annotated face.

@@ -36,11 +36,11 @@ use std::io::Write;
 use rayon::prelude::*;
 
 use super::{crop_shear, frame_around_eyes};
-use crate::dataset::AnnotatedFace;
+use crate::dev::dataset::AnnotatedFace;
 use crate::error::{Error, Result};
 use crate::geometry::{Point, Shear};
 use crate::imageio;
-use crate::train::SplitMix64;
+use crate::rng::SplitMix64;
 use crate::warp::{try_apply_shear, Canvas, Interpolation, Placement};
 
 /// Std of the eyes' midpoint's offset from where the crop expects it, eye distances, each axis.
@@ -421,15 +421,17 @@ fn negative_samples(
             let roll = ROLL_JITTER * normal(rng);
             let eyes = Point::new(
                 b.x + 0.5
-                    * (crate::features::RIGHT_EYE_IN_BOX.0 + crate::features::LEFT_EYE_IN_BOX.0)
+                    * (crate::detect::boxes::RIGHT_EYE_IN_BOX.0
+                        + crate::detect::boxes::LEFT_EYE_IN_BOX.0)
                     * b.width,
                 b.y + 0.5
-                    * (crate::features::RIGHT_EYE_IN_BOX.1 + crate::features::LEFT_EYE_IN_BOX.1)
+                    * (crate::detect::boxes::RIGHT_EYE_IN_BOX.1
+                        + crate::detect::boxes::LEFT_EYE_IN_BOX.1)
                     * b.height,
             );
             let frame = frame_around_eyes(
                 eyes,
-                crate::features::EYE_DISTANCE_PER_BOX_WIDTH * b.width,
+                crate::detect::boxes::EYE_DISTANCE_PER_BOX_WIDTH * b.width,
                 version.k - residual,
                 roll,
                 options.size,

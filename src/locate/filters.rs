@@ -24,25 +24,13 @@
 
 use image::GrayImage;
 
+use crate::detect::boxes::{LEFT_EYE_IN_BOX, RIGHT_EYE_IN_BOX};
 use crate::filters::{normalize_patch, Correlator, EyeFilters, Peak};
 use crate::geometry::{Point, Rect};
 use crate::resample::{bilinear_clamped, resample, resample_rows};
 
 /// Width of the normalised face, pixels (the paper's 150).
 pub const FACE_WIDTH: f64 = 150.0;
-
-/// Where the subject's right eye sits in a detector box, as fractions of the box width/height.
-/// Median over 2532 Caltech development faces (eye distance >= 20 px) matched to OpenCV
-/// `haarcascade_frontalface_alt2` detections (scale 1.1, 3 neighbours); spread (std) 0.025 / 0.031.
-/// Measured when the annotations were still read as 0-based (see
-/// [`crate::dataset::CALTECH_PIXEL_ORIGIN`]): a pixel, about 0.01 box widths, right of and below
-/// where 0-based annotations would put them, well inside the eye search window; not re-measured.
-pub const RIGHT_EYE_IN_BOX: (f64, f64) = (0.3184, 0.397);
-/// Where the subject's left eye sits in a detector box (same measurement; std 0.028 / 0.035).
-pub const LEFT_EYE_IN_BOX: (f64, f64) = (0.698, 0.394);
-/// Eye distance divided by the detector box width (same measurement; median 0.381, std 0.033).
-/// Used to derive a training face box from annotated eyes exactly as the detector would draw it.
-pub const EYE_DISTANCE_PER_BOX_WIDTH: f64 = 0.381;
 
 /// Where each nostril is searched, relative to its eye, in eye distances: inwards (towards the
 /// nose) and downwards. From the dlib 68-point markup (43 faces, points 32 and 34 against the eye
@@ -1166,26 +1154,10 @@ impl<'f> FeatureLocator<'f> {
     }
 }
 
-/// The detector-style face box for a face whose eye centres are known (used for training, so
-/// training crops are cut from the same normalised face the detector's box gives at run time).
-pub fn face_box_from_eyes(right_eye: Point, left_eye: Point) -> Rect {
-    let width = right_eye.distance(left_eye) / EYE_DISTANCE_PER_BOX_WIDTH;
-    let mid = right_eye.midpoint(left_eye);
-    let mid_in_box = (
-        (RIGHT_EYE_IN_BOX.0 + LEFT_EYE_IN_BOX.0) / 2.0,
-        (RIGHT_EYE_IN_BOX.1 + LEFT_EYE_IN_BOX.1) / 2.0,
-    );
-    Rect::new(
-        mid.x - mid_in_box.0 * width,
-        mid.y - mid_in_box.1 * width,
-        width,
-        width,
-    )
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::detect::boxes::{face_box_from_eyes, EYE_DISTANCE_PER_BOX_WIDTH};
 
     /// An eye-like distractor beside the right eye, a copy of that eye slightly stronger than
     /// it, wins the single-eye search; the pair search keeps the eye at the distance the box

@@ -6,7 +6,7 @@
 //! shows the image point `centre + scale * S(k) R(roll) (p - crop centre)`, where
 //! `S(k) = [[1, k], [0, 1]]` is this crate's shear ([`crate::geometry::Shear`]) and `R` turns
 //! clockwise on screen (x right, y down) for a positive roll, as
-//! [`crate::features::NormalizedFace::rotated`] does. A face sheared by `k` and tilted by `roll`
+//! [`crate::locate::filters::NormalizedFace::rotated`] does. A face sheared by `k` and tilted by `roll`
 //! in the image therefore appears upright and unsheared in a crop made with that `k` and `roll`.
 
 use image::GrayImage;

@@ -2,7 +2,7 @@
 //! the recognition rows of the paper's Table I, on data anyone can get.
 //!
 //! **Protocol** (as the paper): per identity the first 3 images by file name are the gallery,
-//! the rest probes ([`crate::dataset::gallery_probe_split`]). For each shear `k`, rank-1 is
+//! the rest probes ([`crate::dev::dataset::gallery_probe_split`]). For each shear `k`, rank-1 is
 //! measured on the undistorted probes (baseline), the sheared probes (raw: detection and eye
 //! location on the sheared image) and the corrected probes (the tool estimates `k` on the sheared
 //! image, de-shears the whole image, then detects and normalises again). A probe where no face
@@ -34,10 +34,11 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::{fmt3, pct};
-use crate::dataset::{gallery_probe_split, LabelledImage};
+use crate::dev::dataset::{gallery_probe_split, LabelledImage};
 use crate::geometry::{Point, Shear};
 use crate::imageio;
-use crate::pipeline::{median, CorrectOptions, ImageReport, Region, Unshear};
+use crate::pipeline::{CorrectOptions, ImageReport, Region, Unshear};
+use crate::stats::median;
 use crate::warp::{try_apply_shear, Canvas, Interpolation};
 
 /// Side of the normalised face crop, pixels.

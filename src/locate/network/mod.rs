@@ -10,6 +10,7 @@
 
 pub mod crop;
 pub mod net;
+#[cfg(feature = "dev")]
 pub mod training;
 
 pub use crop::{crop_shear, residual_from_crop_shear, CropFrame};
@@ -21,13 +22,7 @@ use crate::geometry::Point;
 /// Side of the crop the network sees, pixels.
 pub const CROP_SIZE: usize = 96;
 
-/// How many eye distances the crop's side spans: from above the brows to below the chin (the
-/// eyes' midpoint sits [`EYES_ABOVE_CENTRE`] above the crop's centre, the mouth about 1.1 eye
-/// distances below the eyes and the chin about 1.6).
-pub const CROP_EYE_DISTANCES: f64 = 3.3;
-
-/// How far above the crop's centre the eyes' midpoint sits, in eye distances.
-pub const EYES_ABOVE_CENTRE: f64 = 0.35;
+pub use crate::detect::boxes::{CROP_EYE_DISTANCES, EYES_ABOVE_CENTRE};
 
 /// The crop frame that shows a face whose eyes' midpoint is at `eyes_midpoint` (image pixels)
 /// and whose eyes are `eye_distance` apart in the upright, unsheared face, with the shear `k`

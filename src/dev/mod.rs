@@ -1,0 +1,6 @@
+//! Developer tools behind the `dev` feature: reading the annotated data sets, training the
+//! correlation filters, and the measurements in `docs/accuracy.md`.
+
+pub mod dataset;
+pub mod eval;
+pub mod train;

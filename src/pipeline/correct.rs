@@ -1,0 +1,62 @@
+//! Equation 6: the shear found (or given) undone on the whole image or on each face region.
+
+use image::DynamicImage;
+
+use super::report::{CorrectOptions, ImageReport, Region};
+use super::Unshear;
+use crate::error::{Error, Result};
+use crate::geometry::Shear;
+use crate::warp;
+
+/// How much a face box is enlarged (each side, as a fraction of its size) to make the region that
+/// a face-region correction changes: the margin takes in hair and jaw, and the warp's feathered
+/// edge lies outside the face.
+pub const FACE_REGION_MARGIN: f64 = 0.3;
+
+impl Unshear {
+    /// Undoes the shear found in `report` (or `options.k`) on `img` (equation 6).
+    ///
+    /// Whole image: rows shifted by `-k (y - H/2)`. Faces: each face region (its box enlarged by
+    /// [`FACE_REGION_MARGIN`]) de-sheared about its own centre with its own `k`, feathered into the
+    /// untouched surroundings. Fails with [`Error::InvalidArgument`] when there is no shear to
+    /// apply (no face and no `options.k`) or the shear is not finite.
+    pub fn correct(
+        &self,
+        img: &DynamicImage,
+        report: &ImageReport,
+        options: &CorrectOptions,
+    ) -> Result<DynamicImage> {
+        if let Some(k) = options.k {
+            if !k.is_finite() {
+                return Err(Error::InvalidArgument(format!("shear {k} is not finite")));
+            }
+        }
+        match options.region {
+            Region::Image => {
+                let k = options.k.or(report.k).ok_or_else(|| {
+                    Error::InvalidArgument("no face found and no shear given".into())
+                })?;
+                let shear = Shear::about_middle(k, img.height());
+                Ok(warp::try_remove_shear(img, shear, options.interpolation, options.canvas)?.0)
+            }
+            Region::Face => {
+                if report.faces.is_empty() {
+                    return Err(Error::InvalidArgument(
+                        "no face found: --region face needs a detected face".into(),
+                    ));
+                }
+                let mut out = img.clone();
+                for face in &report.faces {
+                    let Some(k) = options.k.or(face.k) else {
+                        continue;
+                    };
+                    let b = face.face_box;
+                    let region = b.scaled_about_center(1.0 + 2.0 * FACE_REGION_MARGIN);
+                    let shear = Shear::new(k, b.center().y);
+                    out = warp::remove_shear_in_region(&out, shear, region, options.interpolation);
+                }
+                Ok(out)
+            }
+        }
+    }
+}

@@ -1,0 +1,366 @@
+//! The whole method behind one value: detect faces, locate their features, estimate the shear
+//! and undo it. Data flows one way through the submodules: `search` finds candidate boxes,
+//! `face` estimates one face, `combine` reduces the faces to the image's shear, and
+//! `correct` undoes it; `report` holds what they report.
+//!
+//! ```no_run
+//! use unshear::{imageio, Config, CorrectOptions, Unshear};
+//!
+//! # fn main() -> unshear::Result<()> {
+//! let unshear = Unshear::new(Config::default())?;
+//! let img = imageio::read_image("photo.jpg".as_ref(), imageio::DEFAULT_MAX_PIXELS)?;
+//! let report = unshear.estimate(&img);
+//! if let Some(k) = report.k {
+//!     let fixed = unshear.correct(&img, &report, &CorrectOptions::default())?;
+//!     println!("k = {k:.3}, corrected {}x{}", fixed.width(), fixed.height());
+//! }
+//! # Ok(())
+//! # }
+//! ```
+
+mod combine;
+mod correct;
+mod face;
+mod proposals;
+mod report;
+mod search;
+#[cfg(test)]
+mod tests;
+
+use image::{DynamicImage, GrayImage};
+
+pub use combine::combined_shear;
+pub use correct::FACE_REGION_MARGIN;
+pub use face::FaceStart;
+pub use report::{CorrectOptions, FaceReport, ImageReport, Region};
+pub use search::{
+    Detection, DEFAULT_ROLL_HYPOTHESES, DEFAULT_SHEAR_HYPOTHESES, THOROUGH_ROLL_HYPOTHESES,
+    THOROUGH_SHEAR_HYPOTHESES, WEAK_BOX_MIN_WIDTH,
+};
+
+use crate::config::Config;
+pub use crate::config::{FaceSearch, Locator};
+use crate::detect::{Cascade, FaceDetector, ProposalNet};
+use crate::error::Result;
+use crate::filters::{EyeFilters, FilterType};
+use crate::geometry::{Point, Rect};
+use crate::locate::network::LandmarkNet;
+use combine::most_confident_of_overlapping;
+use proposals::{proposal_detections, proposal_is_new, proposal_shows};
+use search::{
+    overlapping_groups, tries_of_group, FallbackDetector, ThoroughDetectors,
+    NEAR_MISS_MIN_FACE_SCORE, THOROUGH_MIN_NEIGHBORS, THOROUGH_ROLL_HYPOTHESES as THOROUGH_ROLLS,
+    THOROUGH_SHEAR_HYPOTHESES as THOROUGH_SHEARS, THOROUGH_STAGE_SLACK, THOROUGH_VIEW_MIN_FACE,
+};
+
+/// The models a corrector runs: the built-in ones ([`Models::builtin`]) or files of the user's
+/// (a cascade XML, a filter file from `unshear train`, a network from
+/// `scripts/train_landmarks.py`).
+#[derive(Debug, Clone)]
+pub struct Models {
+    /// The Viola-Jones cascade (OpenCV's XML format).
+    pub cascade: Cascade,
+    /// The correlation filters for eyes, nostrils, nose and mouth.
+    pub filters: EyeFilters,
+    /// The landmark network.
+    pub network: LandmarkNet,
+    /// The face proposal classifier of the thorough search.
+    pub proposals: ProposalNet,
+}
+
+impl Models {
+    /// The models compiled into the crate, with the built-in filters of type `filters`.
+    pub fn builtin(filters: FilterType) -> Result<Self> {
+        Ok(Self {
+            cascade: Cascade::frontal_face_alt2(),
+            filters: EyeFilters::builtin(filters)?,
+            network: LandmarkNet::embedded()?,
+            proposals: ProposalNet::embedded()?,
+        })
+    }
+}
+
+/// The rolling-shutter corrector: the models and the [`Config`] they run with. Built once and
+/// shared (it is `Sync`; every method takes `&self`).
+#[derive(Debug)]
+pub struct Unshear {
+    config: Config,
+    detector: FaceDetector,
+    fallback: Option<FallbackDetector>,
+    filters: EyeFilters,
+    network: LandmarkNet,
+    /// The quick search's de-sheared views (also the filters' with the thorough setting).
+    shear_hypotheses: Vec<f64>,
+    roll_hypotheses: Vec<f64>,
+    /// The lenient detectors of [`FaceSearch::Thorough`], when it is set (used with the network
+    /// only).
+    thorough: Option<ThoroughDetectors>,
+    /// The face proposal classifier of the thorough search, when [`Config::proposals`] is set.
+    proposals: Option<ProposalNet>,
+}
+
+impl Unshear {
+    /// A corrector with the built-in models.
+    pub fn new(config: Config) -> Result<Self> {
+        let models = Models::builtin(config.filter_type)?;
+        Self::with_models(config, models)
+    }
+
+    /// A corrector with `models`; fails when `config` does not validate
+    /// ([`Config::validate`]).
+    pub fn with_models(config: Config, models: Models) -> Result<Self> {
+        config.validate()?;
+        let detector = FaceDetector::new(models.cascade, config.detector);
+        let finite = |v: &[f64]| {
+            v.iter()
+                .copied()
+                .filter(|k| k.is_finite())
+                .collect::<Vec<_>>()
+        };
+        let shear_hypotheses = finite(
+            config
+                .shear_hypotheses
+                .as_deref()
+                .unwrap_or(&DEFAULT_SHEAR_HYPOTHESES),
+        );
+        let default_rolls: &[f64] = match config.search {
+            FaceSearch::Thorough => &THOROUGH_ROLLS,
+            FaceSearch::Quick => &DEFAULT_ROLL_HYPOTHESES,
+        };
+        let roll_hypotheses = config
+            .roll_hypotheses
+            .as_deref()
+            .unwrap_or(default_rolls)
+            .iter()
+            .copied()
+            .filter(|r| r.is_finite() && *r != 0.0)
+            .collect();
+        let thorough = (config.search == FaceSearch::Thorough).then(|| {
+            let params = crate::detect::DetectorParams {
+                min_neighbors: THOROUGH_MIN_NEIGHBORS,
+                stage_slack: THOROUGH_STAGE_SLACK,
+                ..config.detector
+            };
+            let (w, h) = params.min_size;
+            let views = crate::detect::DetectorParams {
+                min_size: (w.max(THOROUGH_VIEW_MIN_FACE), h.max(THOROUGH_VIEW_MIN_FACE)),
+                ..params
+            };
+            let cascade = detector.cascade();
+            ThoroughDetectors {
+                as_is: FaceDetector::new(cascade.clone(), params),
+                views: FaceDetector::new(cascade.clone(), views),
+                shear_hypotheses: finite(
+                    config
+                        .shear_hypotheses
+                        .as_deref()
+                        .unwrap_or(&THOROUGH_SHEARS),
+                ),
+            }
+        });
+        let fallback = config
+            .fallback_cascade
+            .then(|| FallbackDetector::frontal_face_default(config.detector));
+        Ok(Self {
+            detector,
+            fallback,
+            filters: models.filters,
+            network: models.network,
+            shear_hypotheses,
+            roll_hypotheses,
+            thorough,
+            proposals: config.proposals.then_some(models.proposals),
+            config,
+        })
+    }
+
+    /// The configuration it runs with.
+    pub fn config(&self) -> &Config {
+        &self.config
+    }
+
+    /// Detects the faces in `img` and estimates the shear from each.
+    pub fn estimate(&self, img: &DynamicImage) -> ImageReport {
+        self.estimate_gray(&Self::gray(img))
+    }
+
+    /// [`Self::estimate`] on a greyscale image.
+    pub fn estimate_gray(&self, gray: &GrayImage) -> ImageReport {
+        let faces: Vec<FaceReport> = self
+            .detect_and_estimate(gray)
+            .into_iter()
+            .filter_map(|(_, face)| face)
+            .collect();
+        ImageReport {
+            k: combined_shear(&faces),
+            faces,
+            width: gray.width(),
+            height: gray.height(),
+        }
+    }
+
+    /// Every detected face box with its estimate, if it gave one (the evaluation needs to tell a
+    /// face that was not found from one that was found but gave no estimate). With the landmark
+    /// network, boxes it finds no face in are left out (see the minimum face score).
+    ///
+    /// The de-sheared retries (see [`Self::detect`]) also run when every face found in the image
+    /// as it is gave no accepted estimate: a false detection, or a sheared face found but poorly
+    /// measured, must not hide a face the retries would find. The views are searched in groups
+    /// of equal |k|, nearest first, until one gives an accepted estimate. Of overlapping faces
+    /// the one with the higher confidence is kept.
+    ///
+    /// When the main detector's faces (as they are and in the retries) still give no accepted
+    /// estimate, the fallback detector, if set, goes through the same two steps and its faces
+    /// join the others.
+    ///
+    /// The thorough search ([`FaceSearch::Thorough`]) instead searches every view at once, and
+    /// then the turned views of strong rolls again in the image de-sheared by the shear its faces
+    /// measured (or one step each way if none was accepted): a face both rolled and sheared is
+    /// upright in neither kind of view alone.
+    pub fn detect_and_estimate(&self, gray: &GrayImage) -> Vec<(Rect, Option<FaceReport>)> {
+        // With the network, a box that gives no face (its face score below MIN_FACE_SCORE, or
+        // no crop) is dropped: the network looked and saw no face there.
+        let network = self.locator() == Locator::Network;
+        let strict_neighbors = self.detector.params().min_neighbors;
+        // A box the main detector's count would not have given (the thorough search's lenient
+        // boxes) is kept only at a size where a face can be measured: dropped before it is
+        // merged with others or costs the network a look.
+        let measurable = |d: &Detection| {
+            (d.neighbors >= strict_neighbors && !d.near_miss)
+                || d.face_box.width >= WEAK_BOX_MIN_WIDTH
+        };
+        let estimate = |d: Detection| {
+            let report = self.estimate_detection(gray, &d).filter(|r| {
+                // A near miss stands as a face only on the network's strong word.
+                !d.near_miss || r.face_score.is_some_and(|s| s >= NEAR_MISS_MIN_FACE_SCORE)
+            });
+            (!network || report.is_some()).then_some((d.face_box, report))
+        };
+        let accepted = |found: &[(Rect, Option<FaceReport>)]| {
+            found
+                .iter()
+                .any(|(_, r)| r.as_ref().is_some_and(|r| r.k.is_some()))
+        };
+        let mut all: Vec<(Rect, Option<FaceReport>)> = Vec::new();
+        let thorough = self.thorough_detectors();
+        if self.config.search_every_view || thorough.is_some() {
+            // A face is the first of its group's boxes that the network takes for one: the
+            // strongest box can be cropped worse than a weaker one from another view.
+            let faces = |mut found: Vec<Detection>| {
+                found.retain(measurable);
+                overlapping_groups(found)
+                    .into_iter()
+                    .filter_map(|group| tries_of_group(group).into_iter().find_map(estimate))
+                    .collect::<Vec<_>>()
+            };
+            let views = self.every_view(thorough.is_some());
+            for (i, pass) in self.detector_passes().enumerate() {
+                let views_pass = match (i, thorough) {
+                    (0, Some(t)) => (&t.views, 1.0),
+                    _ => pass,
+                };
+                let mut found = self.detect_as_is(pass, gray);
+                found.extend(self.detect_in_views(views_pass, gray, &views));
+                all.extend(faces(found));
+                if let (0, Some(_), Some(net)) = (i, thorough, &self.proposals) {
+                    // Strongest first, each judged against the faces found so far (the
+                    // cascade's and the stronger windows').
+                    for d in proposal_detections(net, gray, WEAK_BOX_MIN_WIDTH) {
+                        if !proposal_is_new(&d, &all) {
+                            continue;
+                        }
+                        if let Some((b, Some(r))) = estimate(d) {
+                            if proposal_shows(&d, &r) {
+                                all.push((b, Some(r)));
+                            }
+                        }
+                    }
+                }
+                if accepted(&all) {
+                    break;
+                }
+            }
+            if let Some(t) = thorough {
+                let views = self.turned_desheared_views(&all);
+                if !views.is_empty() {
+                    // These views look for faces not found yet: a box, or the face it gives,
+                    // holding the eyes of a face already found is that face again.
+                    let found_eyes: Vec<(Point, Point)> = all
+                        .iter()
+                        .filter_map(|(_, r)| r.map(|r| (r.right_eye, r.left_eye)))
+                        .collect();
+                    let holds_found = |b: &Rect| {
+                        found_eyes
+                            .iter()
+                            .any(|&(r, l)| b.contains(r) && b.contains(l))
+                    };
+                    let mut found = self.detect_in_views((&t.views, 1.0), gray, &views);
+                    found.retain(|d| !holds_found(&d.face_box));
+                    // The boxes kept hold no found face; the face a box gave may still be one.
+                    let new = faces(found)
+                        .into_iter()
+                        .filter(|(_, r)| !r.as_ref().is_some_and(|r| holds_found(&r.face_box)));
+                    all.extend(new.collect::<Vec<_>>());
+                }
+            }
+            return most_confident_of_overlapping(all);
+        }
+        for (i, pass) in self.detector_passes().enumerate() {
+            all.extend(
+                self.detect_as_is(pass, gray)
+                    .into_iter()
+                    .filter_map(estimate),
+            );
+            if accepted(&all) {
+                if i == 0 {
+                    // The usual case: the image as it is, in the detector's order, and any
+                    // faces the shear measured on these hid from the cascade after them.
+                    let more: Vec<Detection> = self.detections_in_measured_view(gray, &all);
+                    all.extend(more.into_iter().filter_map(estimate));
+                    return all;
+                }
+                break;
+            }
+            for group in self.view_groups() {
+                let turned = group.iter().any(|&(_, roll)| roll != 0.0);
+                if turned && !all.is_empty() {
+                    // Turned views look for faces the cascade cannot see upright; a face already
+                    // found (if not trusted) is not searched for again at this extra cost.
+                    break;
+                }
+                all.extend(
+                    self.detect_under_hypotheses(pass, gray, &group)
+                        .into_iter()
+                        .filter_map(estimate),
+                );
+                if accepted(&all) {
+                    break;
+                }
+            }
+            if accepted(&all) {
+                break;
+            }
+        }
+        most_confident_of_overlapping(all)
+    }
+
+    /// The greyscale image the detector and the filters work on.
+    pub fn gray(img: &DynamicImage) -> GrayImage {
+        crate::detect::to_gray_opencv(img)
+    }
+
+    /// What locates the features.
+    pub fn locator(&self) -> Locator {
+        self.config.locator
+    }
+
+    /// The face detector.
+    pub fn detector(&self) -> &FaceDetector {
+        &self.detector
+    }
+
+    /// The filters.
+    pub fn filters(&self) -> &EyeFilters {
+        &self.filters
+    }
+}

@@ -1,0 +1,98 @@
+//! Candidate faces from the proposal classifier's windows: where the window expects the eyes,
+//! whether it may show a face not found yet, and whether the face found from it is the one it
+//! shows.
+
+use image::GrayImage;
+
+use super::combine::holds_eyes;
+use super::report::FaceReport;
+use super::search::Detection;
+use crate::detect::boxes::{box_around_eyes, eyes_in_box, EYE_DISTANCE_PER_BOX_WIDTH};
+use crate::detect::{ProposalNet, ProposalParams};
+use crate::geometry::{Point, Rect};
+
+/// How far (in the window's eye distances) the eyes the network located from a proposal
+/// window may be from where the window expects them, for the face to count as the window's.
+pub(crate) const PROPOSAL_MAX_OFFSET: f64 = 0.5;
+
+/// How much larger or smaller than the window expects the located eye distance may be.
+pub(crate) const PROPOSAL_MAX_SCALE: f64 = 1.5;
+
+/// Where a proposal (see [`proposal_detections`]) expects the eyes' midpoint, and their
+/// distance.
+pub(crate) fn proposal_eyes(proposal: &Detection) -> (Point, f64) {
+    let b = proposal.face_box;
+    let (at_x, at_y) = eyes_in_box();
+    (
+        Point::new(b.x + at_x * b.width, b.y + at_y * b.height),
+        b.width * EYE_DISTANCE_PER_BOX_WIDTH,
+    )
+}
+
+/// Whether a proposal may show a face not among `found`: its box holds the eyes of none of
+/// about its size ([`PROPOSAL_MAX_SCALE`]; that face again), and its eyes are inside the box of
+/// none of about its size or larger (part of that face at a smaller scale: a large face's nose
+/// and nostrils can look like a small face to the classifier and the network alike). A much
+/// larger window around a smaller face found is still searched: that "face" can be the nose of
+/// the larger one.
+pub(crate) fn proposal_is_new(proposal: &Detection, found: &[(Rect, Option<FaceReport>)]) -> bool {
+    let (eyes, distance) = proposal_eyes(proposal);
+    let b = proposal.face_box;
+    found.iter().all(|(_, r)| {
+        r.is_none_or(|r| {
+            let holds_it = holds_eyes(&b, &r);
+            let ratio = r.right_eye.distance(r.left_eye) / distance;
+            let at_least_as_large = ratio * PROPOSAL_MAX_SCALE >= 1.0;
+            let about_as_large = at_least_as_large && ratio <= PROPOSAL_MAX_SCALE;
+            let same_face = holds_it && about_as_large;
+            let part_of_it = at_least_as_large && r.face_box.contains(eyes);
+            !(same_face || part_of_it)
+        })
+    })
+}
+
+/// Whether the face the network located from a proposal (see [`proposal_detections`]) is the
+/// one its window shows: its eyes' midpoint within [`PROPOSAL_MAX_OFFSET`] of where the window
+/// expects it and its eye distance within [`PROPOSAL_MAX_SCALE`] of the window's. The network
+/// can walk from a window beside a face to part of it, or to another face.
+pub(crate) fn proposal_shows(proposal: &Detection, face: &FaceReport) -> bool {
+    let (expected_eyes, expected) = proposal_eyes(proposal);
+    let distance = face.right_eye.distance(face.left_eye);
+    face.right_eye
+        .midpoint(face.left_eye)
+        .distance(expected_eyes)
+        < PROPOSAL_MAX_OFFSET * expected
+        && (distance / expected).ln().abs() < PROPOSAL_MAX_SCALE.ln()
+}
+
+/// The proposal classifier's windows in `gray` (see [`ProposalNet`]) as
+/// candidate boxes of at least `min_width` pixels: each the box a detector would draw around
+/// the eyes the window expects, upright and unsheared, marked as a near miss (the network
+/// must be as sure of it as of the cascade's near misses, [`NEAR_MISS_MIN_FACE_SCORE`]).
+pub(crate) fn proposal_detections(
+    net: &ProposalNet,
+    gray: &GrayImage,
+    min_width: f64,
+) -> Vec<Detection> {
+    let params = ProposalParams {
+        min_eye_distance: min_width * EYE_DISTANCE_PER_BOX_WIDTH,
+        ..ProposalParams::default()
+    };
+    net.propose(gray, &params)
+        .into_iter()
+        .map(|p| proposal_detection(p.eyes_midpoint, p.eye_distance))
+        .collect()
+}
+
+/// The candidate box of a proposal window expecting eyes `eye_distance` apart with their
+/// midpoint at `eyes` (see [`proposal_detections`]); [`proposal_eyes`] reads them back.
+pub(crate) fn proposal_detection(eyes: Point, eye_distance: f64) -> Detection {
+    let width = eye_distance / EYE_DISTANCE_PER_BOX_WIDTH;
+    Detection {
+        face_box: box_around_eyes(eyes, width, width, 0.0),
+        view_k: 0.0,
+        view_roll: 0.0,
+        neighbors: 0,
+        near_miss: true,
+    }
+}

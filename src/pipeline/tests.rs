@@ -1,0 +1,484 @@
+use super::combine::{combined_shear, most_confident_of_overlapping};
+use super::proposals::{proposal_detection, proposal_eyes, proposal_is_new, proposal_shows};
+use super::search::{
+    overlapping_groups, strongest_of_overlapping, tries_of_group, View, THOROUGH_BOX_TRIES,
+    THOROUGH_HALF_STEP_LADDER, TURNED_DESHEARED_MIN_ROLL, TURNED_DESHEARED_SHEARS,
+};
+use super::*;
+use crate::detect::boxes::{
+    box_around_eyes, eyes_in_box, scaled_about_centre, EYE_DISTANCE_PER_BOX_WIDTH,
+};
+use crate::locate::filters::{NormalizedFace, FACE_WIDTH};
+
+/// A corrector with the built-in models.
+fn built(config: Config) -> Unshear {
+    Unshear::new(config).expect("built-in models")
+}
+
+fn face(k: Option<f64>, confidence: f64) -> FaceReport {
+    let p = Point::new(0.0, 0.0);
+    FaceReport {
+        face_box: Rect::new(0.0, 0.0, 10.0, 10.0),
+        right_eye: p,
+        left_eye: p,
+        right_nostril: p,
+        left_nostril: p,
+        mouth: None,
+        k,
+        k_measured: k.unwrap_or(0.9),
+        k_nose: None,
+        k_mouth: None,
+        nose_tip: None,
+        k_nose_tip: None,
+        nose_tip_psr: 0.0,
+        roll_degrees: 0.0,
+        confidence,
+        psr: [0.0; 5],
+        locator: Locator::Filters,
+        k_network: None,
+        k_points: None,
+        spread: None,
+        face_score: None,
+    }
+}
+
+#[test]
+fn the_thorough_search_is_lenient_only_with_the_network() {
+    let u = built(Config::default());
+    let t = u.thorough_detectors().expect("thorough by default");
+    assert_eq!(t.as_is.params().min_neighbors, THOROUGH_MIN_NEIGHBORS);
+    assert_eq!(t.views.params().min_neighbors, THOROUGH_MIN_NEIGHBORS);
+    assert_eq!(t.as_is.params().stage_slack, THOROUGH_STAGE_SLACK);
+    assert_eq!(t.views.params().stage_slack, THOROUGH_STAGE_SLACK);
+    assert_eq!(t.as_is.params().min_size, (0, 0));
+    let floor = THOROUGH_VIEW_MIN_FACE;
+    assert_eq!(t.views.params().min_size, (floor, floor));
+    assert_eq!(u.roll_hypotheses, THOROUGH_ROLL_HYPOTHESES.to_vec());
+    assert_eq!(t.shear_hypotheses, THOROUGH_SHEAR_HYPOTHESES.to_vec());
+    assert_eq!(
+        u.hypothesis_groups(),
+        vec![vec![0.15, -0.15], vec![0.3, -0.3], vec![0.45, -0.45]]
+    );
+    assert_eq!(u.shear_hypotheses, DEFAULT_SHEAR_HYPOTHESES.to_vec());
+    assert_eq!(
+        u.detector.params().min_neighbors,
+        3,
+        "the main detector unchanged"
+    );
+    assert_eq!(u.detector.params().stage_slack, 0);
+    let u = built(Config {
+        locator: Locator::Filters,
+        ..Config::default()
+    });
+    assert!(
+        u.thorough_detectors().is_none(),
+        "the filters cannot judge boxes"
+    );
+    assert_eq!(
+        u.hypothesis_groups(),
+        vec![vec![0.3, -0.3], vec![0.5, -0.5]]
+    );
+    let u = built(Config::quick());
+    assert!(u.thorough_detectors().is_none());
+    assert_eq!(u.roll_hypotheses, DEFAULT_ROLL_HYPOTHESES.to_vec());
+    assert_eq!(u.shear_hypotheses, DEFAULT_SHEAR_HYPOTHESES.to_vec());
+}
+
+#[test]
+fn hypotheses_are_grouped_by_magnitude_nearest_first() {
+    let quick = |shears: &[f64]| {
+        built(Config {
+            shear_hypotheses: Some(shears.to_vec()),
+            ..Config::quick()
+        })
+    };
+    assert_eq!(
+        quick(&[0.5, 0.3, -0.5, -0.3, 0.1]).hypothesis_groups(),
+        vec![vec![0.1], vec![0.3, -0.3], vec![0.5, -0.5]]
+    );
+    assert!(quick(&[]).hypothesis_groups().is_empty());
+}
+
+#[test]
+fn turned_views_follow_the_de_sheared_ones_nearest_first() {
+    let views = |rolls: &[f64]| {
+        built(Config {
+            shear_hypotheses: Some(vec![0.3, -0.3]),
+            roll_hypotheses: Some(rolls.to_vec()),
+            ..Config::quick()
+        })
+        .view_groups()
+    };
+    let r = |d: f64| d.to_radians();
+    assert_eq!(
+        views(&[30.0, -10.0, 10.0, 0.0]),
+        vec![
+            vec![(0.3, 0.0), (-0.3, 0.0)],
+            vec![(0.0, r(-10.0)), (0.0, r(10.0))],
+            vec![(0.0, r(30.0))],
+        ]
+    );
+    assert_eq!(views(&[]), vec![vec![(0.3, 0.0), (-0.3, 0.0)]]);
+}
+
+#[test]
+fn the_thorough_views_take_turns_on_the_two_scale_ladders() {
+    let unshear = built(Config::default());
+    let views = unshear.every_view(true);
+    let groups = unshear.view_groups();
+    assert_eq!(views.len(), groups.iter().map(Vec::len).sum::<usize>());
+    let mut at = 0;
+    for (i, group) in groups.iter().enumerate() {
+        let de_sheared = group.iter().all(|&(_, roll)| roll == 0.0);
+        let ladder = if de_sheared && i % 2 == 0 {
+            THOROUGH_HALF_STEP_LADDER
+        } else {
+            0.0
+        };
+        for &(k, roll) in group {
+            assert_eq!(
+                views[at],
+                View {
+                    k,
+                    roll,
+                    scale_offset: ladder
+                },
+                "group {i}"
+            );
+            at += 1;
+        }
+    }
+    // The views of +-0.15 and +-0.3 (the two nearest to k = 0.2) differ in ladder, and so
+    // do +-0.3 and +-0.45; the turned views are on OpenCV's.
+    assert_eq!(views[0].scale_offset, THOROUGH_HALF_STEP_LADDER);
+    assert_eq!(views[2].scale_offset, 0.0);
+    assert_eq!(views[4].scale_offset, THOROUGH_HALF_STEP_LADDER);
+    assert!(views
+        .iter()
+        .filter(|v| v.roll != 0.0)
+        .all(|v| v.scale_offset == 0.0));
+    // Without the alternation (the filters' search of every view), OpenCV's ladder only.
+    assert!(unshear
+        .every_view(false)
+        .iter()
+        .all(|v| v.scale_offset == 0.0));
+}
+
+#[test]
+fn strong_rolls_are_searched_again_de_sheared_by_the_measured_shear() {
+    let unshear = built(Config::default());
+    let strong: Vec<View> = unshear
+        .every_view(true)
+        .into_iter()
+        .filter(|v| v.k == 0.0 && v.roll.to_degrees().abs() >= TURNED_DESHEARED_MIN_ROLL)
+        .collect();
+    assert_eq!(strong.len(), 4, "+-25 and +-45 degrees: {strong:?}");
+    let found = |k: Option<f64>| vec![(Rect::new(0.0, 0.0, 10.0, 10.0), Some(face(k, 0.8)))];
+    // An accepted face measured 0.37: the strong rolls at that shear, each on its ladder.
+    let views = unshear.turned_desheared_views(&found(Some(0.37)));
+    assert_eq!(views.len(), strong.len());
+    for (v, s) in views.iter().zip(&strong) {
+        assert_eq!(*v, View { k: 0.37, ..*s });
+    }
+    // A shear the cascade tolerates: nothing new to see.
+    assert!(unshear
+        .turned_desheared_views(&found(Some(0.05)))
+        .is_empty());
+    // No accepted face (refused, or none at all): one step each way.
+    for nothing in [found(None), Vec::new()] {
+        let views = unshear.turned_desheared_views(&nothing);
+        assert_eq!(views.len(), TURNED_DESHEARED_SHEARS.len() * strong.len());
+        for k in TURNED_DESHEARED_SHEARS {
+            assert_eq!(views.iter().filter(|v| v.k == k).count(), strong.len());
+        }
+    }
+}
+
+#[test]
+fn a_box_around_eyes_puts_them_where_the_turned_face_expects() {
+    let eyes = Point::new(200.0, 150.0);
+    for degrees in [0.0f64, 12.0, -25.0] {
+        let roll = degrees.to_radians();
+        let b = box_around_eyes(eyes, 120.0, 120.0, roll);
+        assert_eq!((b.width, b.height), (120.0, 120.0));
+        let gray = GrayImage::new(400, 300);
+        let face = NormalizedFace::rotated(&gray, b, roll);
+        let (at_x, at_y) = eyes_in_box();
+        let expected = face.to_image(Point::new(at_x * FACE_WIDTH, at_y * FACE_WIDTH));
+        assert!(expected.distance(eyes) < 1e-9, "{degrees}: {expected:?}");
+    }
+}
+
+#[test]
+fn boxes_scale_about_their_centre() {
+    let b = Rect::new(10.0, 20.0, 100.0, 50.0);
+    assert_eq!(scaled_about_centre(b, 1.0), b);
+    let s = scaled_about_centre(b, 0.9);
+    assert!((s.width - 90.0).abs() < 1e-12 && (s.height - 45.0).abs() < 1e-12);
+    assert!((s.x - 15.0).abs() < 1e-12 && (s.y - 22.5).abs() < 1e-12);
+}
+
+/// A detection of a 100 px box at `x`, from the view de-sheared by `view_k`.
+fn detection_at(x: f64, neighbors: u32, view_k: f64) -> Detection {
+    Detection {
+        face_box: Rect::new(x, 0.0, 100.0, 100.0),
+        view_k,
+        view_roll: 0.0,
+        neighbors,
+        near_miss: false,
+    }
+}
+
+#[test]
+fn overlapping_detections_keep_the_strongest_and_least_warped() {
+    let d = detection_at;
+    // Two overlapping boxes (IoU 0.82) and one apart.
+    let kept = strongest_of_overlapping(vec![d(0.0, 3, 0.0), d(10.0, 7, 0.3), d(300.0, 1, 0.5)]);
+    assert_eq!(kept.len(), 2);
+    assert_eq!((kept[0].neighbors, kept[0].view_k), (7, 0.3));
+    assert_eq!(kept[1].face_box.x, 300.0);
+    // Equal neighbours: the view nearer the image as it is.
+    let kept = strongest_of_overlapping(vec![d(0.0, 4, -0.5), d(5.0, 4, 0.3)]);
+    assert_eq!((kept.len(), kept[0].view_k), (1, 0.3));
+    // A detection before a near miss, whatever their neighbours.
+    let near = Detection {
+        near_miss: true,
+        ..d(5.0, 9, 0.0)
+    };
+    let kept = strongest_of_overlapping(vec![near, d(0.0, 2, 0.5)]);
+    assert_eq!(
+        (kept.len(), kept[0].near_miss, kept[0].neighbors),
+        (1, false, 2)
+    );
+}
+
+#[test]
+fn a_group_of_overlapping_boxes_is_tried_strongest_first_one_box_per_view() {
+    let d = detection_at;
+    let groups = overlapping_groups(vec![
+        d(0.0, 2, 0.0),
+        d(400.0, 1, 0.0),
+        d(10.0, 9, 0.3),
+        d(5.0, 5, 0.3),
+        d(8.0, 4, -0.15),
+        d(3.0, 3, 0.45),
+        d(2.0, 1, -0.45),
+    ]);
+    assert_eq!(groups.len(), 2, "the face's boxes and the one apart");
+    let strengths: Vec<u32> = groups[0].iter().map(|g| g.neighbors).collect();
+    assert_eq!(strengths, vec![9, 5, 4, 3, 2, 1]);
+    assert_eq!(groups[1].len(), 1);
+    // The second box of the +0.3 view is skipped; the tries stop at THOROUGH_BOX_TRIES.
+    let tries: Vec<(u32, f64)> = tries_of_group(groups[0].clone())
+        .iter()
+        .map(|t| (t.neighbors, t.view_k))
+        .collect();
+    assert_eq!(THOROUGH_BOX_TRIES, 3);
+    assert_eq!(tries, vec![(9, 0.3), (4, -0.15), (3, 0.45)]);
+    // Every group's first box is what `strongest_of_overlapping` keeps.
+    let kept = strongest_of_overlapping(groups.concat());
+    assert_eq!(kept, vec![groups[0][0], groups[1][0]]);
+}
+
+#[test]
+fn overlapping_faces_keep_the_most_confident_estimate() {
+    let at = |x: f64| Rect::new(x, 0.0, 100.0, 100.0);
+    let kept = most_confident_of_overlapping(vec![
+        (at(0.0), None),
+        (at(10.0), Some(face(Some(0.1), 0.4))),
+        (at(5.0), Some(face(None, 0.9))),
+        (at(400.0), None),
+    ]);
+    assert_eq!(kept.len(), 2);
+    assert_eq!(
+        kept[0].0.x, 5.0,
+        "the most confident of the three overlapping"
+    );
+    assert!(kept[1].1.is_none() && kept[1].0.x == 400.0);
+}
+
+#[test]
+fn a_proposal_counts_only_for_the_face_its_window_shows() {
+    let window = proposal_detection(Point::new(200.0, 100.0), 40.0);
+    let (eyes, distance) = proposal_eyes(&window);
+    assert!(eyes.distance(Point::new(200.0, 100.0)) < 1e-9 && (distance - 40.0).abs() < 1e-9);
+    let located = |dx: f64, dy: f64, d: f64| FaceReport {
+        right_eye: Point::new(200.0 + dx - d / 2.0, 100.0 + dy),
+        left_eye: Point::new(200.0 + dx + d / 2.0, 100.0 + dy),
+        ..face(Some(0.1), 0.9)
+    };
+    assert!(proposal_shows(&window, &located(0.0, 0.0, 40.0)));
+    // Up to half the window's eye distance away, and 1.5 times larger or smaller.
+    assert!(proposal_shows(&window, &located(12.0, 12.0, 30.0)));
+    assert!(!proposal_shows(&window, &located(0.0, 21.0, 40.0)));
+    assert!(!proposal_shows(&window, &located(-21.0, 0.0, 40.0)));
+    assert!(!proposal_shows(&window, &located(0.0, 0.0, 61.0)));
+    assert!(!proposal_shows(&window, &located(0.0, 0.0, 26.0)));
+}
+
+#[test]
+fn a_proposal_on_a_face_found_or_inside_it_is_not_searched() {
+    // A face found with eyes 60 px apart at (300, 200), in its detector's box.
+    let width = 60.0 / EYE_DISTANCE_PER_BOX_WIDTH;
+    let found_box = box_around_eyes(Point::new(300.0, 200.0), width, width, 0.0);
+    let found = vec![(
+        found_box,
+        Some(FaceReport {
+            face_box: found_box,
+            right_eye: Point::new(270.0, 200.0),
+            left_eye: Point::new(330.0, 200.0),
+            ..face(Some(0.1), 0.9)
+        }),
+    )];
+    // The same face, a little off: its box holds both eyes.
+    assert!(!proposal_is_new(
+        &proposal_detection(Point::new(305.0, 195.0), 55.0),
+        &found
+    ));
+    // A small window on the face's nose, whose box holds neither eye.
+    let nose = proposal_detection(Point::new(300.0, 240.0), 20.0);
+    assert!(!nose.face_box.contains(Point::new(270.0, 200.0)));
+    assert!(!proposal_is_new(&nose, &found));
+    // A face beside it, two and a half eye distances away, and any face where none was
+    // found (or only a box that gave no face).
+    assert!(proposal_is_new(
+        &proposal_detection(Point::new(450.0, 200.0), 60.0),
+        &found
+    ));
+    assert!(proposal_is_new(&nose, &[]));
+    assert!(proposal_is_new(&nose, &[(found_box, None)]));
+    // A window about a small "face" found on a large face's nose, holding neither of its
+    // eyes: the large face is searched.
+    let small_box = box_around_eyes(Point::new(300.0, 240.0), 50.0, 50.0, 0.0);
+    let small = vec![(
+        small_box,
+        Some(FaceReport {
+            face_box: small_box,
+            right_eye: Point::new(290.0, 240.0),
+            left_eye: Point::new(310.0, 240.0),
+            ..face(Some(0.1), 0.9)
+        }),
+    )];
+    let large = proposal_detection(Point::new(300.0, 225.0), 60.0);
+    assert!(small_box.contains(proposal_eyes(&large).0));
+    assert!(large.face_box.contains(Point::new(290.0, 240.0)));
+    assert!(proposal_is_new(&large, &small));
+    // The same window at the small face's size is not.
+    assert!(!proposal_is_new(
+        &proposal_detection(Point::new(300.0, 240.0), 20.0),
+        &small
+    ));
+}
+
+#[test]
+fn one_face_found_in_two_boxes_is_reported_once() {
+    let located = |x: f64, confidence: f64| FaceReport {
+        right_eye: Point::new(x, 50.0),
+        left_eye: Point::new(x + 40.0, 50.0),
+        ..face(Some(0.1), confidence)
+    };
+    let tight = Rect::new(80.0, 20.0, 105.0, 105.0);
+    // A box three times as large (IoU 0.11) whose features led to the same eyes, 4 px off.
+    let around_the_head = Rect::new(0.0, -60.0, 315.0, 315.0);
+    assert!(tight.iou(&around_the_head) < 0.3);
+    let kept = most_confident_of_overlapping(vec![
+        (around_the_head, Some(located(104.0, 0.6))),
+        (tight, Some(located(100.0, 0.9))),
+        // Another face beside it, one eye distance and a half away: kept.
+        (
+            Rect::new(150.0, 20.0, 105.0, 105.0),
+            Some(located(160.0, 0.5)),
+        ),
+    ]);
+    assert_eq!(kept.len(), 2, "{kept:?}");
+    assert_eq!(kept[0].0, tight, "the more confident of the two copies");
+    assert_eq!(kept[1].0.x, 150.0);
+    // A more confident copy from a box beside the face, which does not hold the eyes it
+    // located, gives way to the box that does.
+    let beside = Rect::new(135.0, 20.0, 105.0, 105.0);
+    let kept = most_confident_of_overlapping(vec![
+        (beside, Some(located(102.0, 0.99))),
+        (tight, Some(located(100.0, 0.9))),
+    ]);
+    assert_eq!(kept.len(), 1, "{kept:?}");
+    assert_eq!(kept[0].0, tight);
+    // A large box around the head whose walk stopped on other points (its located eyes far
+    // from the face's, not the same face by `same_face`) but which holds the kept face's
+    // eyes: the same face seen again, not reported.
+    let stopped_elsewhere = FaceReport {
+        right_eye: Point::new(90.0, 40.0),
+        left_eye: Point::new(230.0, 0.0),
+        ..face(Some(-0.5), 0.01)
+    };
+    let kept = most_confident_of_overlapping(vec![
+        (around_the_head, Some(stopped_elsewhere)),
+        (tight, Some(located(100.0, 0.9))),
+    ]);
+    assert_eq!(kept.len(), 1, "{kept:?}");
+    assert_eq!(kept[0].0, tight);
+    // Without the tight face, it is reported (its own box holds its eyes).
+    let alone = most_confident_of_overlapping(vec![(around_the_head, Some(stopped_elsewhere))]);
+    assert_eq!(alone.len(), 1);
+}
+
+#[test]
+fn combined_shear_is_a_confidence_weighted_median_of_accepted_faces() {
+    assert_eq!(combined_shear(&[]), None);
+    assert_eq!(combined_shear(&[face(None, 0.9)]), None);
+    // Equal weights: the ordinary median.
+    let even = [face(Some(0.1), 0.5), face(Some(0.3), 0.5)];
+    assert!((combined_shear(&even).expect("k") - 0.2).abs() < 1e-12);
+    // One confident face outweighs two doubtful ones that agree with each other.
+    let faces = [
+        face(Some(0.40), 0.9),
+        face(Some(0.05), 0.2),
+        face(Some(0.06), 0.2),
+        face(None, 1.0),
+    ];
+    assert_eq!(combined_shear(&faces), Some(0.40));
+    // Three similar weights: the middle value, whatever the outlier.
+    let faces = [
+        face(Some(0.2), 0.5),
+        face(Some(0.22), 0.6),
+        face(Some(-3.0), 0.55),
+    ];
+    assert_eq!(combined_shear(&faces), Some(0.2));
+}
+
+#[test]
+fn no_face_means_no_k_and_correction_needs_one() {
+    let unshear = built(Config::default());
+    let img = DynamicImage::ImageLuma8(GrayImage::from_pixel(120, 90, image::Luma([128])));
+    let report = unshear.estimate(&img);
+    assert!(report.faces.is_empty() && report.k.is_none());
+    assert!(unshear
+        .correct(&img, &report, &CorrectOptions::default())
+        .is_err());
+    let forced = CorrectOptions {
+        k: Some(0.2),
+        ..Default::default()
+    };
+    let out = unshear.correct(&img, &report, &forced).expect("k given");
+    assert_eq!((out.width(), out.height()), (120, 90));
+    let bad = CorrectOptions {
+        k: Some(f64::NAN),
+        ..Default::default()
+    };
+    assert!(unshear.correct(&img, &report, &bad).is_err());
+}
+
+#[test]
+fn degenerate_boxes_give_no_estimate() {
+    let unshear = built(Config::default());
+    let gray = GrayImage::from_pixel(50, 50, image::Luma([0]));
+    assert!(unshear
+        .estimate_face(&gray, Rect::new(0.0, 0.0, 0.0, 10.0), FaceStart::default())
+        .is_none());
+    assert!(unshear
+        .estimate_face(
+            &gray,
+            Rect::new(0.0, 0.0, f64::NAN, 10.0),
+            FaceStart::default()
+        )
+        .is_none());
+}
