@@ -15,7 +15,7 @@ import unshear
 
 pytest.importorskip(
     "ray.data",
-    reason="Ray is not installed: `scripts/test-all --with-ray` (as CI) runs the Ray example",
+    reason="Ray is not installed: `scripts/test-all --extras` (as CI) runs the Ray example",
 )
 pytest.importorskip("PIL", reason="Pillow is not installed (ray.data.read_images needs it)")
 
