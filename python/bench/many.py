@@ -6,6 +6,7 @@ python python/bench/many.py [--images 24] [--rounds 3]
 from __future__ import annotations
 
 import argparse
+import resource
 import time
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
@@ -26,26 +27,32 @@ def main() -> None:
     u.estimate_many(images[:2])
     print(f"{len(images)} images from {folder}")
 
-    def best(run: Callable[[], object]) -> float:
-        times = []
+    def cpu() -> float:
+        r = resource.getrusage(resource.RUSAGE_SELF)
+        return r.ru_utime + r.ru_stime
+
+    def best(run: Callable[[], object]) -> tuple[float, float]:
+        """The fastest round's wall time, and the cores busy during it."""
+        rounds = []
         for _ in range(a.rounds):
-            t = time.perf_counter()
+            c, t = cpu(), time.perf_counter()
             run()
-            times.append(time.perf_counter() - t)
-        return min(times)
+            wall = time.perf_counter() - t
+            rounds.append((wall, (cpu() - c) / wall))
+        return min(rounds)
 
     one = best(lambda: u.estimate_many(images, threads=1))
     two = best(lambda: u.estimate_many(images, threads=2))
     with ThreadPoolExecutor(max_workers=2) as pool:
         threads = best(lambda: list(pool.map(u.estimate, images)))
-    for name, seconds in [
+    for name, (seconds, cores) in [
         ("estimate_many(threads=1)", one),
         ("estimate_many(threads=2)", two),
         ("estimate from 2 Python threads", threads),
     ]:
         print(
             f"{name:32} {seconds:6.2f} s  {len(images) / seconds:5.2f} images/s  "
-            f"x{one / seconds:.2f}"
+            f"x{one[0] / seconds:.2f}  {cores:.2f} cores busy"
         )
 
 
