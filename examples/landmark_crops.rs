@@ -1,5 +1,5 @@
 //! Cuts the landmark network's training crops from the Caltech development faces
-//! (`unshear::locate::network::training`), for `scripts/train_landmarks.py`.
+//! (`unshear::dev::landmark_crops`), for `scripts/train_landmarks.py`.
 //!
 //! ```sh
 //! cargo run --release --example landmark_crops -- ../shared/data/caltech-webfaces target/landmark-crops
@@ -13,7 +13,7 @@
 use std::path::PathBuf;
 
 use unshear::dev::dataset::{CaltechWebFaces, FaceDataset};
-use unshear::locate::network::training::{export_crops, ExportOptions};
+use unshear::dev::landmark_crops::{export_crops, ExportOptions};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = std::env::args().skip(1);

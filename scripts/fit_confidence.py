@@ -1,41 +1,52 @@
 #!/usr/bin/env python3
-"""Fits the confidence model of `pipeline::confidence` (the filters' estimates) or, with
-`--locator network`, of `pipeline::network_confidence` (the landmark network's) to an
-`unshear eval shear --out DIR` run.
+"""Fits a confidence model (`pipeline::confidence`) to an `unshear eval shear --out DIR` run:
+the filters' model of one filter type (`--model umace|asef|mosse`, the features of
+`confidence`) or the landmark network's (`--model network`, the features of
+`network_confidence`), and with `--write-rust` writes it into `src/fitted.rs`.
 
 The model is a logistic regression of "the measured k is within 0.10 of the true k" on the
-features listed in FEATURES (the same, in the same order, as `pipeline::confidence` computes).
-It prints the weights and intercept in Rust syntax, the two-fold cross-validated AUC (folds by
-image, so that a face's shears never sit on both sides) and what several thresholds keep.
+features listed in FEATURES or NETWORK_FEATURES (the same, in the same order, as the Rust
+functions compute). It prints the weights and intercept, the two-fold cross-validated AUC
+(folds by image, so that a face's shears never sit on both sides) and what several thresholds
+keep.
 
-Usage (the figures in the README and in `pipeline.rs`):
-    cargo run --release -- eval shear --limit 300 --k=0,0.4,-0.4 --out target/fit300
-    cargo run --release -- eval shear --k=0,0.4,-0.4 --out target/all
-    python3 scripts/fit_confidence.py target/fit300 --check target/all      # UMACE's model
-    python3 scripts/fit_confidence.py target/all --fit-first 300            # MOSSE's, ASEF's
+Usage (`scripts/regenerate-models --only confidence` runs these for every model):
+    cargo run --release -- eval shear --locator filters --filter-type mosse --k=0,0.4,-0.4 --out target/eval-mosse
+    python3 scripts/fit_confidence.py target/eval-mosse --model mosse --fit-first 300 --write-rust src/fitted.rs
+    cargo run --release -- eval shear --k=0,0.4,-0.4 --min-confidence 0 --out target/eval-network
+    python3 scripts/fit_confidence.py target/eval-network --model network --fit-first 300 --write-rust src/fitted.rs
 
-`--check OTHER_RUN` fits on the first run and scores the faces of OTHER_RUN that are not in it
-(`--limit 300` takes the first 300 faces of the ground-truth file). `--fit-first N` splits one
-run instead: it fits on the first N faces in the run's own order (images sorted by path, which
-is not the ground-truth file's order) and scores the others. Add `--filter-type T` to both
-`eval` commands for type T. Needs only numpy.
+`--fit-first N` fits on the first N faces in the run's own order (images sorted by path, which
+is not the ground-truth file's order) and scores the others; `--check OTHER_RUN` instead fits on
+the whole run and scores the faces of OTHER_RUN that are not in it. `--fitted-on TEXT` names the
+command that made the run in the generated comment. Needs only numpy.
 """
+
+from __future__ import annotations
+
+import argparse
 import json
 import math
-import sys
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
+from fitted_rust import Block, fit_doc, replace_block
 
-# pipeline::EYE_DISTANCE_PER_BOX_WIDTH
+# detect::boxes::EYE_DISTANCE_PER_BOX_WIDTH
 EYE_DISTANCE_PER_BOX_WIDTH = 0.381
 GOOD = 0.10
 
+Sample = dict[str, Any]
 
-def ln(v):
+
+def ln(v: float) -> float:
+    """The natural logarithm, with values below 0.1 taken as 0.1 (as the Rust code does)."""
     return math.log(max(v, 0.1))
 
 
-def features(s):
+def features(s: Sample) -> list[float]:
+    """The features of `pipeline::confidence::confidence` (the filters)."""
     psr = s["psr"]
     disagreement = (
         abs(s["k_nose_tip"] - s["k_mouth"])
@@ -53,7 +64,8 @@ def features(s):
     ]
 
 
-def network_features(s):
+def network_features(s: Sample) -> list[float]:
+    """The features of `pipeline::confidence::network_confidence` (the landmark network)."""
     spread = s["spread"]
     k_points = s["k_points"]
     return [
@@ -89,25 +101,39 @@ FEATURES = [
     "|eye distance / box width - 0.381| * 10",
 ]
 
+# Each model's features, as a function and as names.
+MODELS: dict[str, tuple[Callable[[Sample], list[float]], list[str]]] = {
+    "umace": (features, FEATURES),
+    "asef": (features, FEATURES),
+    "mosse": (features, FEATURES),
+    "network": (network_features, NETWORK_FEATURES),
+}
 
-def load_samples(run):
-    with open(run + "/samples.json") as f:
-        return json.load(f)
+
+def load_samples(run: str) -> list[Sample]:
+    """The samples of an `eval shear --out` run."""
+    with open(run + "/samples.json", encoding="utf-8") as f:
+        samples: list[Sample] = json.load(f)
+    return samples
 
 
-def face_key(s):
+def face_key(s: Sample) -> tuple[str, int]:
+    """What identifies a face across its shears."""
     return (s["image"], s["face"])
 
 
-def arrays(samples):
+def arrays(
+    samples: list[Sample], feature_fn: Callable[[Sample], list[float]]
+) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """The features, the labels (within GOOD or not) and the images of the measured samples."""
     rows = [s for s in samples if s["measured"] is not None]
-    x = np.array([FEATURE_FN(s) for s in rows])
+    x = np.array([feature_fn(s) for s in rows])
     y = np.array([abs(s["measured"] - s["true_k"]) <= GOOD for s in rows], dtype=float)
     images = [s["image"] for s in rows]
     return x, y, images
 
 
-def fit(x, y, ridge=1e-3):
+def fit(x: np.ndarray, y: np.ndarray, ridge: float = 1e-3) -> tuple[np.ndarray, float]:
     """Logistic regression by Newton's method (a small ridge keeps it finite if separable)."""
     a = np.hstack([x, np.ones((len(x), 1))])
     w = np.zeros(a.shape[1])
@@ -119,14 +145,15 @@ def fit(x, y, ridge=1e-3):
         w -= step
         if np.abs(step).max() < 1e-10:
             break
-    return w[:-1], w[-1]
+    return w[:-1], float(w[-1])
 
 
-def predict(x, weights, intercept):
+def predict(x: np.ndarray, weights: np.ndarray, intercept: float) -> np.ndarray:
+    """The model's probabilities."""
     return 1.0 / (1.0 + np.exp(-(x @ weights + intercept)))
 
 
-def auc(score, y):
+def auc(score: np.ndarray, y: np.ndarray) -> float:
     """Probability that a good estimate scores above a bad one (ties count half)."""
     order = np.argsort(score)
     ranks = np.empty(len(score))
@@ -137,10 +164,11 @@ def auc(score, y):
         ranks[tied] = ranks[tied].mean()
     pos = y == 1
     n_pos, n_neg = pos.sum(), (~pos).sum()
-    return (ranks[pos].sum() - n_pos * (n_pos + 1) / 2) / (n_pos * n_neg)
+    return float((ranks[pos].sum() - n_pos * (n_pos + 1) / 2) / (n_pos * n_neg))
 
 
-def report(name, x, y, weights, intercept):
+def report(name: str, x: np.ndarray, y: np.ndarray, weights: np.ndarray, intercept: float) -> None:
+    """Prints the AUC and what several thresholds keep."""
     c = predict(x, weights, intercept)
     print(f"{name}: {len(y)} estimates, {100 * y.mean():.1f}% within {GOOD}; AUC {auc(c, y):.3f}")
     for t in (0.15, 0.2, 0.25, 0.3, 0.4, 0.5):
@@ -153,51 +181,71 @@ def report(name, x, y, weights, intercept):
         )
 
 
-FEATURE_FN = features
+def main() -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("run", help="folder of an `eval shear --out` run")
+    parser.add_argument("--model", required=True, choices=list(MODELS))
+    split = parser.add_mutually_exclusive_group()
+    split.add_argument("--fit-first", type=int, metavar="N", help="fit on the run's first N faces")
+    split.add_argument("--check", metavar="OTHER_RUN", help="score the faces of another run")
+    parser.add_argument("--write-rust", metavar="FILE", help="write the model here (src/fitted.rs)")
+    parser.add_argument(
+        "--fitted-on",
+        metavar="TEXT",
+        help="what made the run, for the generated comment (default: the run's path)",
+    )
+    args = parser.parse_args()
+    feature_fn, names = MODELS[args.model]
 
-
-def main():
-    global FEATURE_FN, FEATURES
-    args = sys.argv[1:]
-    if "--locator" in args:
-        i = args.index("--locator")
-        if args[i + 1] == "network":
-            FEATURE_FN, FEATURES = network_features, NETWORK_FEATURES
-        del args[i : i + 2]
-    if not args or args[0] in ("-h", "--help") or len(args) not in (1, 3):
-        print(__doc__)
-        return
-    fit_samples = load_samples(args[0])
+    fit_samples = load_samples(args.run)
     check = None
-    if len(args) == 3 and args[1] == "--check":
+    if args.check is not None:
         fitted = {face_key(s) for s in fit_samples}
-        check = [s for s in load_samples(args[2]) if face_key(s) not in fitted]
-    elif len(args) == 3 and args[1] == "--fit-first":
+        check = [s for s in load_samples(args.check) if face_key(s) not in fitted]
+    elif args.fit_first is not None:
         order = list(dict.fromkeys(face_key(s) for s in fit_samples))
-        first = set(order[: int(args[2])])
+        first = set(order[: args.fit_first])
         check = [s for s in fit_samples if face_key(s) not in first]
         fit_samples = [s for s in fit_samples if face_key(s) in first]
-    x, y, images = arrays(fit_samples)
+    x, y, images = arrays(fit_samples, feature_fn)
     # Two folds by image.
-    names = sorted(set(images))
-    fold = {n: i % 2 for i, n in enumerate(names)}
+    image_names = sorted(set(images))
+    fold = {n: i % 2 for i, n in enumerate(image_names)}
     f = np.array([fold[i] for i in images])
     for k in (0, 1):
         w, b = fit(x[f != k], y[f != k])
         print(f"fold {k}: held-out AUC {auc(predict(x[f == k], w, b), y[f == k]):.3f}")
     weights, intercept = fit(x, y)
-    for name, w in zip(FEATURES, weights):
+    for name, w in zip(names, weights):
         print(f"  {w:+.3f}  {name}")
-    print(
-        ("ConfidenceModel::NETWORK = ConfidenceModel" if FEATURE_FN is network_features else "ConfidenceModel")
-        + " { weights: [%s], intercept: %.3f }"
-        % (", ".join(f"{w:.3f}" for w in weights), intercept)
-    )
+    print(f"  {intercept:+.3f}  intercept")
     report("fitted", x, y, weights, intercept)
+    fit_faces = len({face_key(s) for s in fit_samples})
+    summary = f"fitted on {len(y)} estimates of {fit_faces} faces"
     if check is not None:
         faces = len({face_key(s) for s in check})
-        xc, yc, _ = arrays(check)
+        xc, yc, _ = arrays(check, feature_fn)
         report(f"checked ({faces} other faces)", xc, yc, weights, intercept)
+        checked_auc = auc(predict(xc, weights, intercept), yc)
+        summary += (
+            f", checked on {len(yc)} estimates of {faces} other faces (AUC {checked_auc:.3f})"
+        )
+    else:
+        summary += f" (AUC {auc(predict(x, weights, intercept), y):.3f} on them)"
+    if args.write_rust:
+        command = f"python3 scripts/fit_confidence.py {args.run} --model {args.model}"
+        if args.fit_first is not None:
+            command += f" --fit-first {args.fit_first}"
+        if args.check is not None:
+            command += f" --check {args.check}"
+        name = f"CONFIDENCE_{args.model.upper()}"
+        fitted_on = args.fitted_on or f"`{args.run}`"
+        doc = fit_doc(name, command, fitted_on, summary)
+        block = Block(name, doc, names, [float(v) for v in weights], intercept)
+        replace_block(args.write_rust, block)
+        print(f"wrote {name} into {args.write_rust}")
 
 
 if __name__ == "__main__":

@@ -1,16 +1,19 @@
 #!/usr/bin/env python3
 """Trains the landmark network (eyes, nose point, mouth centre, and the crop's shear) on the
 crops that `cargo run --release --example landmark_crops` cuts, and writes the weights in the
-format `src/landmarks/net.rs` reads.
+format `src/locate/network/net.rs` reads.
 
-    python3 -m venv target/torch && target/torch/bin/pip install torch numpy
+    python3 -m venv target/torch
+    target/torch/bin/pip install -r scripts/requirements-train.txt
     cargo run --release --example landmark_crops -- ../shared/data/caltech-webfaces target/landmark-crops
-    target/torch/bin/python scripts/train_landmarks.py target/landmark-crops -o models/landmarks.bin
+    target/torch/bin/python scripts/train_landmarks.py target/landmark-crops -o target/landmarks.bin
 
-Everything is seeded (`--seed`), and torch runs deterministic CPU kernels, so the same crops
-and the same torch version give the same weights.
+`scripts/regenerate-models --only landmarks` runs these with the committed file's options.
+Everything is seeded (`--seed`), and torch runs deterministic CPU kernels, so the same crops,
+the same tool versions and the same CPU give the same weights; the file's header records the
+versions, the CPU, the seed and the command (`provenance.py`).
 
-The network (`Net` below, mirrored by `src/landmarks/net.rs`): a strided convolutional trunk
+The network (`Net` below, mirrored by `src/locate/network/net.rs`): a strided convolutional trunk
 (96 -> 48 -> 24 -> 12 -> 6 pixels), a feature pyramid back up to 24x24, one heatmap per
 landmark there, read by a spatial softmax and its expectation (integral regression), and the
 crop's shear and a face score (is there a face in the crop at all?) regressed from the pooled
@@ -23,23 +26,29 @@ shear's L1 error, plus a small pull of each heatmap towards a Gaussian at its la
 maps single-peaked), on the face crops, and the face score's cross-entropy on all crops
 (non-face crops teach it). 10% of the faces (by face index) are held out and scored every epoch.
 """
+
+from __future__ import annotations
+
 import argparse
 import json
-import math
 import os
 import struct
 import sys
 import time
+from typing import Any
 
 import numpy as np
 import torch
-import torch.nn as nn
 import torch.nn.functional as F
+from provenance import provenance
+from torch import nn
 
 LANDMARKS = 4  # right eye, left eye, nose, mouth
 
 
-def conv_bn(cin, cout, stride=1, k=3):
+def conv_bn(cin: int, cout: int, stride: int = 1, k: int = 3) -> nn.Sequential:
+    """A convolution without bias, batch normalisation and ReLU (folded into one convolution
+    when written)."""
     return nn.Sequential(
         nn.Conv2d(cin, cout, k, stride, k // 2, bias=False),
         nn.BatchNorm2d(cout),
@@ -48,7 +57,9 @@ def conv_bn(cin, cout, stride=1, k=3):
 
 
 class Net(nn.Module):
-    def __init__(self, widths=(16, 32, 64, 96), fpn=32, size=96):
+    def __init__(
+        self, widths: tuple[int, ...] = (16, 32, 64, 96), fpn: int = 32, size: int = 96
+    ) -> None:
         super().__init__()
         a, b, c, d = widths
         self.size = size
@@ -67,7 +78,7 @@ class Net(nn.Module):
         # Two outputs from the pooled last stage: the crop's shear and the face score's logit.
         self.head = nn.Sequential(nn.Linear(d, 64), nn.ReLU(inplace=True), nn.Linear(64, 2))
 
-    def forward(self, x):
+    def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         c1 = self.stem(x)
         c2 = self.down2(c1)
         c3 = self.down3(c2)
@@ -80,7 +91,7 @@ class Net(nn.Module):
         return heat, out[:, 0], out[:, 1]
 
 
-def standardize(x):
+def standardize(x: torch.Tensor) -> torch.Tensor:
     """Each crop (grey levels over 255) to zero mean and unit spread; the floor of 0.01 keeps a
     flat crop finite. `net.rs` does the same."""
     m = x.mean(dim=(2, 3), keepdim=True)
@@ -88,7 +99,7 @@ def standardize(x):
     return (x - m) / (s + 0.01)
 
 
-def decode(heat, size):
+def decode(heat: torch.Tensor, size: int) -> tuple[torch.Tensor, torch.Tensor]:
     """Spatial softmax and expectation: points in crop pixels (pixel centres at integers)."""
     n, l, h, w = heat.shape
     stride = size / w
@@ -100,17 +111,22 @@ def decode(heat, size):
     return torch.stack([x, y], dim=-1), p
 
 
-def gaussian_targets(points, h, w, size, sigma_cells=1.0):
+def gaussian_targets(
+    points: torch.Tensor, h: int, w: int, size: int, sigma_cells: float = 1.0
+) -> torch.Tensor:
+    """One Gaussian map per landmark at its label (sigma one heatmap cell), summing to 1."""
     stride = size / w
     xs = (torch.arange(w, dtype=points.dtype) + 0.5) * stride - 0.5
     ys = (torch.arange(h, dtype=points.dtype) + 0.5) * stride - 0.5
-    gx = torch.exp(-((xs[None, None, :] - points[..., 0:1]) / stride) ** 2 / (2 * sigma_cells**2))
-    gy = torch.exp(-((ys[None, None, :] - points[..., 1:2]) / stride) ** 2 / (2 * sigma_cells**2))
+    gx = torch.exp(-(((xs[None, None, :] - points[..., 0:1]) / stride) ** 2) / (2 * sigma_cells**2))
+    gy = torch.exp(-(((ys[None, None, :] - points[..., 1:2]) / stride) ** 2) / (2 * sigma_cells**2))
     g = gy[..., :, None] * gx[..., None, :]
     return g / g.sum(dim=(-1, -2), keepdim=True).clamp_min(1e-12)
 
 
-def augment(x, pts, shear, rng):
+def augment(
+    x: torch.Tensor, pts: torch.Tensor, shear: torch.Tensor, rng: np.random.Generator
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """Random mirror and photometric changes, in place on a float batch (N,1,S,S)."""
     n, _, s, _ = x.shape
     flip = torch.from_numpy(rng.random(n) < 0.5)
@@ -143,7 +159,7 @@ def augment(x, pts, shear, rng):
     return x, pts, shear
 
 
-def shear_and_roll(e, v):
+def shear_and_roll(e: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Port of `estimate::shear_and_roll` (numpy, vectorised): k from eye line e and axis v."""
     ex, ey, vx, vy = e[:, 0], e[:, 1], v[:, 0], v[:, 1]
     no_roll = vx / np.where(vy == 0, np.nan, vy)
@@ -164,7 +180,7 @@ def shear_and_roll(e, v):
     return k
 
 
-def geometric_shear(p, beta=0.3):
+def geometric_shear(p: np.ndarray, beta: float = 0.3) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The pipeline's shear-roll-yaw estimate from (N,4,2) points: mouth axis extrapolated away
     from the nose axis by beta."""
     e = p[:, 1] - p[:, 0]
@@ -174,9 +190,15 @@ def geometric_shear(p, beta=0.3):
     return km + beta * (km - kn), km, kn
 
 
-def evaluate(net, X, L, idx, size, batch=256):
+def evaluate(
+    net: Net, X: np.ndarray, L: np.ndarray, idx: np.ndarray, size: int, batch: int = 256
+) -> dict[str, float]:
+    """The held-out scores (shares and medians) of the crops `idx`, logged every epoch and
+    recorded in the file's header."""
     net.eval()
-    preds, shears, faces = [], [], []
+    preds: list[np.ndarray] = []
+    shears: list[np.ndarray] = []
+    faces: list[np.ndarray] = []
     with torch.no_grad():
         for i in range(0, len(idx), batch):
             j = idx[i : i + batch]
@@ -193,7 +215,9 @@ def evaluate(net, X, L, idx, size, batch=256):
     is_face = lab[:, 12] > 0.5
     face_scores = {
         "faces_scored>=0.5": float(np.mean(f[is_face] >= 0.5)),
-        "non_faces_scored>=0.5": float(np.mean(f[~is_face] >= 0.5)) if (~is_face).any() else float("nan"),
+        "non_faces_scored>=0.5": float(np.mean(f[~is_face] >= 0.5))
+        if (~is_face).any()
+        else float("nan"),
     }
     p, s, lab = p[is_face], s[is_face], lab[is_face]
     t = lab[:, :8].reshape(-1, 4, 2).astype(np.float64)
@@ -211,7 +235,7 @@ def evaluate(net, X, L, idx, size, batch=256):
         "head_shear<=0.05": float(np.mean(np.abs(s - kappa) <= 0.05)),
     }
     for name, pts in [("geom", p), ("oracle", t)]:
-        k, km, kn = geometric_shear(pts)
+        k, km, _kn = geometric_shear(pts)
         ok = np.isfinite(k)
         out[f"{name}<=0.05"] = float(np.mean(np.abs(k - kappa)[ok] <= 0.05) * ok.mean())
         out[f"{name}_mouth<=0.05"] = float(np.nanmean(np.abs(km - kappa) <= 0.05))
@@ -222,22 +246,27 @@ def evaluate(net, X, L, idx, size, batch=256):
     return out
 
 
-def fold_bn(conv, bn):
+def fold_bn(conv: nn.Conv2d, bn: nn.BatchNorm2d) -> tuple[torch.Tensor, torch.Tensor]:
+    """The convolution's weights and bias with the batch normalisation folded in."""
     w = conv.weight.detach().double()
-    b = conv.bias.detach().double() if conv.bias is not None else torch.zeros(w.shape[0], dtype=torch.float64)
+    b = (
+        conv.bias.detach().double()
+        if conv.bias is not None
+        else torch.zeros(w.shape[0], dtype=torch.float64)
+    )
     scale = bn.weight.detach().double() / torch.sqrt(bn.running_var.double() + bn.eps)
     w = w * scale[:, None, None, None]
     b = (b - bn.running_mean.double()) * scale + bn.bias.detach().double()
     return w.float(), b.float()
 
 
-def export(net, path, meta):
+def export(net: Net, path: str, meta: dict[str, Any]) -> None:
     """Writes the weights: magic `UNSHEARN`, u32 version 1, u32 header length, the JSON header
     (architecture and training summary), then every tensor as little-endian f32 in the order
     the header lists them."""
-    tensors = []
+    tensors: list[tuple[str, torch.Tensor, torch.Tensor, int, bool]] = []
 
-    def conv_entry(name, seq_or_conv, relu):
+    def conv_entry(name: str, seq_or_conv: nn.Module, relu: bool) -> None:
         if isinstance(seq_or_conv, nn.Sequential):
             w, b = fold_bn(seq_or_conv[0], seq_or_conv[1])
             stride = seq_or_conv[0].stride[0]
@@ -261,15 +290,36 @@ def export(net, path, meta):
     conv_entry("smooth2", net.smooth2, True)
     conv_entry("heat", net.heat, False)
     fc = [net.head[0], net.head[2]]
-    layers = []
-    blobs = []
+    layers: list[dict[str, Any]] = []
+    blobs: list[bytes] = []
     for name, w, b, stride, relu in tensors:
-        co, ci, kh, kw = w.shape
-        layers.append({"name": name, "kind": "conv", "in": ci, "out": co, "kernel": kh, "stride": stride, "relu": relu})
+        co, ci, kh, _kw = w.shape
+        layers.append(
+            {
+                "name": name,
+                "kind": "conv",
+                "in": ci,
+                "out": co,
+                "kernel": kh,
+                "stride": stride,
+                "relu": relu,
+            }
+        )
         blobs += [w.numpy().astype("<f4").tobytes(), b.numpy().astype("<f4").tobytes()]
     for i, l in enumerate(fc):
-        layers.append({"name": f"head.{i}", "kind": "dense", "in": l.in_features, "out": l.out_features, "relu": i == 0})
-        blobs += [l.weight.detach().numpy().astype("<f4").tobytes(), l.bias.detach().numpy().astype("<f4").tobytes()]
+        layers.append(
+            {
+                "name": f"head.{i}",
+                "kind": "dense",
+                "in": l.in_features,
+                "out": l.out_features,
+                "relu": i == 0,
+            }
+        )
+        blobs += [
+            l.weight.detach().numpy().astype("<f4").tobytes(),
+            l.bias.detach().numpy().astype("<f4").tobytes(),
+        ]
     header = dict(meta)
     # What this network gives on a fixed synthetic crop, so the Rust forward pass can be checked
     # against the trainer's (`net.rs`, test `the_embedded_network_reproduces_the_trainers_check`).
@@ -294,13 +344,14 @@ def export(net, path, meta):
         f.write(b"UNSHEARN")
         f.write(struct.pack("<II", 1, len(h)))
         f.write(h)
-        for blob in blobs:
-            f.write(blob)
+        f.writelines(blobs)
     os.replace(path + ".tmp", path)
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def main() -> None:
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("crops")
     ap.add_argument("-o", "--out", required=True)
     ap.add_argument("--epochs", type=int, default=12)
@@ -313,19 +364,28 @@ def main():
     ap.add_argument("--heat-weight", type=float, default=0.02)
     ap.add_argument("--face-weight", type=float, default=0.2)
     ap.add_argument("--val-percent", type=int, default=10, help="faces held out (0: train on all)")
-    ap.add_argument("--limit", type=int, default=0, help="use only the first N crops (quick trials)")
+    ap.add_argument(
+        "--limit", type=int, default=0, help="use only the first N crops (quick trials)"
+    )
     ap.add_argument("--threads", type=int, default=2)
-    ap.add_argument("--export-only", metavar="CHECKPOINT", help="write the weights of a saved checkpoint (OUT.pt of an earlier run) without training")
+    ap.add_argument(
+        "--export-only",
+        metavar="CHECKPOINT",
+        help="write the weights of a saved checkpoint (OUT.pt of an earlier run) without training",
+    )
     args = ap.parse_args()
 
     torch.manual_seed(args.seed)
     torch.set_num_threads(args.threads)
     torch.use_deterministic_algorithms(True)
     rng = np.random.default_rng(args.seed)
-    meta = json.load(open(os.path.join(args.crops, "meta.json")))
+    with open(os.path.join(args.crops, "meta.json"), encoding="utf-8") as f:
+        meta = json.load(f)
     size = meta["size"]
     X = np.fromfile(os.path.join(args.crops, "crops.u8"), dtype=np.uint8).reshape(-1, size, size)
-    L = np.fromfile(os.path.join(args.crops, "labels.f32"), dtype="<f4").reshape(-1, len(meta["label_fields"]))
+    L = np.fromfile(os.path.join(args.crops, "labels.f32"), dtype="<f4").reshape(
+        -1, len(meta["label_fields"])
+    )
     if args.limit:
         X, L = X[: args.limit], L[: args.limit]
     # Held out by face (non-face crops, index -1, by their position instead).
@@ -349,7 +409,9 @@ def main():
         return
     opt = torch.optim.AdamW(net.parameters(), lr=args.lr, weight_decay=1e-4)
     steps = args.epochs * (len(train_idx) // args.batch)
-    sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=args.lr, total_steps=steps, pct_start=0.1)
+    sched = torch.optim.lr_scheduler.OneCycleLR(
+        opt, max_lr=args.lr, total_steps=steps, pct_start=0.1
+    )
     step = 0
     t0 = time.time()
     for epoch in range(args.epochs):
@@ -374,27 +436,34 @@ def main():
                 tgt = gaussian_targets(pts, heat.shape[2], heat.shape[3], size)
                 loss_heat = -(tgt * torch.log(prob.clamp_min(1e-12))).sum(dim=(-1, -2)).mean()
                 loss_shear = (sh[is_face] - kappa).abs().mean()
-                loss = loss + loss_pts + args.shear_weight * loss_shear + args.heat_weight * loss_heat
+                loss = (
+                    loss + loss_pts + args.shear_weight * loss_shear + args.heat_weight * loss_heat
+                )
             opt.zero_grad()
             loss.backward()
             opt.step()
             sched.step()
             step += 1
             total += loss.item()
-        msg = {"epoch": epoch + 1, "loss": round(total / max(1, len(order) // args.batch), 4), "minutes": round((time.time() - t0) / 60, 1)}
+        msg = {
+            "epoch": epoch + 1,
+            "loss": round(total / max(1, len(order) // args.batch), 4),
+            "minutes": round((time.time() - t0) / 60, 1),
+        }
         if len(val_idx):
             msg.update({k: round(v, 4) for k, v in evaluate(net, X, L, val_idx, size).items()})
         print(json.dumps(msg), flush=True)
-        torch.save({"state": net.state_dict(), "summary": {"epoch": epoch + 1}}, args.out + ".epoch.pt")
+        torch.save(
+            {"state": net.state_dict(), "summary": {"epoch": epoch + 1}}, args.out + ".epoch.pt"
+        )
     summary = {
-        "trained_on": os.path.abspath(args.crops),
-        "crops": int(len(train_idx)),
-        "held_out": int(len(val_idx)),
+        "trained_on": args.crops,
+        "crops": len(train_idx),
+        "held_out": len(val_idx),
         "epochs": args.epochs,
-        "seed": args.seed,
-        "torch": str(torch.__version__),
         "crop_eye_distances": meta["crop_eye_distances"],
         "eyes_above_centre": meta["eyes_above_centre"],
+        **provenance(args.seed),
     }
     if len(val_idx):
         summary["held_out_scores"] = evaluate(net, X, L, val_idx, size)

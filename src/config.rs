@@ -20,6 +20,10 @@ use crate::filters::FilterType;
 use crate::locate::network::Budget;
 use serde::Serialize;
 
+/// Default confidence below which a face's estimate is refused: about the least trustworthy fifth
+/// of the estimates on web photos.
+pub const DEFAULT_MIN_CONFIDENCE: f64 = 0.25;
+
 /// Largest |shear| a face search's de-sheared views may take (beyond it a view is mostly
 /// padding).
 pub const MAX_SEARCH_SHEAR: f64 = 2.0;
@@ -102,7 +106,7 @@ impl Default for Config {
         Self {
             locator: Locator::Network,
             search: FaceSearch::Thorough,
-            min_confidence: crate::estimate::DEFAULT_MIN_CONFIDENCE,
+            min_confidence: DEFAULT_MIN_CONFIDENCE,
             network_budget: Budget::STILL,
             refinements: 0,
             shear_model: ShearModel::default(),

@@ -25,8 +25,8 @@
 //! Data flows one way through the modules; none imports a module after it in this list:
 //!
 //! ```text
-//! geometry, stats ─▶ imageio ─▶ warp ─▶ detect ─▶ filters ─▶ locate ─▶ estimate ─▶ config
-//!     ─▶ pipeline ─▶ annotate, video ─▶ dev (feature "dev") ─▶ the `unshear` binary
+//! geometry, stats ─▶ imageio ─▶ warp ─▶ detect ─▶ filters ─▶ estimate ─▶ locate ─▶ config
+//!     ─▶ pipeline ─▶ video ─▶ dev (feature "dev") ─▶ the `unshear` binary
 //! ```
 //!
 //! * [`imageio`]: read (EXIF orientation applied, size-limited) and write (atomic, never over an
@@ -35,10 +35,12 @@
 //! * [`detect`]: Viola-Jones on OpenCV's Haar cascades, the face proposal classifier, and the
 //!   geometry tying a detector box to the eyes it holds.
 //! * [`filters`]: correlation filters (UMACE, ASEF, MOSSE): synthesis, file format, correlation.
-//! * [`locate`]: where the features are in one face: the landmark network, or the filters.
-//! * [`estimate`]: the shear `k` from located points, and how far it can be trusted.
+//! * [`estimate`]: the shear `k` from located points (equation 5, shear and roll, yaw).
+//! * [`locate`]: where the features are in one face: the landmark network (which reads the
+//!   shear from its points as it walks), or the filters.
 //! * [`config`]: every setting, as one plain value.
-//! * [`pipeline`]: all of the above behind one [`Unshear`] value.
+//! * [`pipeline`]: all of the above behind one [`Unshear`] value, with how far each face's
+//!   estimate can be trusted.
 //! * [`video`]: y4m streams and frame folders, faces tracked between detections, `k` filtered
 //!   over time.
 //! * `dev` (feature `dev`): the data sets, filter training and the measurements of
@@ -55,6 +57,7 @@ pub mod dev;
 pub mod error;
 pub mod estimate;
 pub mod filters;
+pub(crate) mod fitted;
 pub mod geometry;
 pub mod imageio;
 pub mod locate;

@@ -142,4 +142,16 @@ mod tests {
         assert!(open(&nan).expect("header fine").1.take(1).is_err());
         assert!(open(&good).expect("valid").1.take(usize::MAX).is_err());
     }
+
+    /// The trainers record their tool versions, seed and command in the header
+    /// (`scripts/provenance.py`); keys a reader does not know must not make a file unreadable.
+    #[test]
+    fn header_keys_the_reader_does_not_know_are_ignored() {
+        let header = r#"{"n": 1, "seed": 1, "versions": {"python": "3.11.7", "torch": "2.15.0"}}"#;
+        let bytes = file(b"UNSHEART", 1, header, &[1.0]);
+        let (header, mut reader) =
+            ModelFile::open::<Header>(&bytes, b"UNSHEART", 1, "a test file").expect("valid");
+        assert_eq!(header, Header { n: 1 });
+        assert_eq!(reader.take(1).expect("one"), vec![1.0]);
+    }
 }

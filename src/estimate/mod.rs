@@ -38,10 +38,6 @@
 //! The points are taken in the input image's own pixels; a uniform rescale of the image scales
 //! every vector alike and leaves `k` and the roll unchanged.
 
-pub mod confidence;
-
-pub use confidence::DEFAULT_MIN_CONFIDENCE;
-
 use crate::geometry::Point;
 
 /// The shortest eye-to-nose height (pixels) for which a side's estimate is used: below it a
@@ -89,18 +85,9 @@ pub fn shear_from_sides(
 pub const MAX_ROLL: f64 = 1.0;
 
 /// How far the mouth's shear is extrapolated away from the nose tip's to cancel yaw:
-/// `k = k_mouth + YAW_EXTRAPOLATION (k_mouth - k_nose_tip)`, with the nose tip as the nose
-/// filter finds it.
-///
-/// On the hand-annotated points (nose tip, mouth centre) the value that cancels yaw best is 0.5
-/// (60% of faces within 0.05 with the mouth alone, 67% with the extrapolation); on located
-/// points every error of the nose point is amplified by the same factor, so the best value is
-/// smaller. 0.3 was chosen on the located points of the first 300 Caltech development faces
-/// (eyes at least 40 px apart, k = 0 and +-0.40; 0.2-0.4 are within a point of each other) and
-/// checked on the other 628 (`scripts/yaw_factor.py`): within 0.05 of the truth for
-/// 33.1/36.3/30.7% of those faces at k = -0.4/0/+0.4, against 28.3/35.0/27.1% with the
-/// nostrils' axis and 0.5 (the previous model) and 29.6/36.1/30.1% with the mouth alone; median
-/// error 0.086 against 0.095. On those faces 0.2-0.4 are again within a point of each other.
+/// `k = k_mouth + YAW_EXTRAPOLATION (k_mouth - k_nose_tip)`. On hand-annotated points 0.5 cancels
+/// yaw best; located points amplify the nose point's error by the same factor, so a smaller
+/// value was chosen on development faces (`scripts/yaw_factor.py`, docs/how-it-works.md).
 pub const YAW_EXTRAPOLATION: f64 = 0.3;
 
 /// [`YAW_EXTRAPOLATION`] for the nostrils' axis, used when the nose filter's point is missing

@@ -146,17 +146,12 @@ pub const EYE_PAIR_FEATURES: [&str; 10] = [
 ///
 /// Fitted by `scripts/fit_eye_pairs.py` (a conditional logit: a softmax over each face's pairs,
 /// choosing the pair nearest the annotated eyes) to the candidates the `eye_pair_features`
-/// example collects: 3059 face-shear samples (k = 0, +-0.4, each face found by the default
-/// detector) of the 1278 Caltech development faces whose eyes are 25 to 40 px apart, none of
-/// them among the faces `eval shear` measures (40 px and more). There both eyes were within
-/// 0.10 of the eye distance for 84.9% of the samples with these weights (two-fold
-/// cross-validated), 83.8% with the hand-set score they replace (the two peak heights, less 5
-/// x the squared scale error, plus 0.5 x the symmetry) and 79.8% with the highest peaks; the
-/// best of the 16 pairs was right for 92.4%. Squares and products of the measures gained
-/// nothing (85.0-85.4%), nor did 6 candidates per eye.
-pub const EYE_PAIR_WEIGHTS: [f64; EYE_PAIR_FEATURES.len()] = [
-    5.55, 5.72, 3.72, 4.3, -32.4, -13.6, -74.2, -76.0, 2.14, 1.37,
-];
+/// example collects on the Caltech development faces whose eyes are 25 to 40 px apart, none of
+/// them among the faces `eval shear` measures (40 px and more), and generated into
+/// `src/fitted.rs`, which names the commands and the fit's cross-validated accuracy. The fit
+/// replaced a hand-set score (the two peak heights, less 5 x the squared scale error, plus 0.5 x
+/// the symmetry), which chose the right pair slightly less often.
+pub const EYE_PAIR_WEIGHTS: [f64; EYE_PAIR_FEATURES.len()] = crate::fitted::EYE_PAIR_WEIGHTS;
 
 /// Side of the patches compared for the pair's symmetry (pixels of the 150-px face): 24, about
 /// the eye and its lids (the eye distance is about 57).

@@ -10,12 +10,12 @@ use super::search::Detection;
 use super::Unshear;
 use crate::config::Locator;
 use crate::detect::boxes::{eyes_of_box, face_box_from_eyes, EYE_DISTANCE_PER_BOX_WIDTH};
-use crate::estimate::confidence::{confidence, network_confidence, ConfidenceModel};
 use crate::estimate::{estimate_face, shear_and_roll, FeatureGeometry};
 use crate::filters::Correlator;
 use crate::geometry::{Point, Rect};
 use crate::locate::filters::{nostril_band, FacePoints, FeatureLocator, NormalizedFace};
 use crate::locate::network::{self, Budget, LandmarkNet, LocatedFace};
+use crate::pipeline::confidence::{confidence, network_confidence, ConfidenceModel};
 
 /// How far (degrees) the roll measured on a face may be from the roll its features were searched
 /// at before the filters search it again in the face turned upright by it: the filters were

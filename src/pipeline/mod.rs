@@ -19,6 +19,7 @@
 //! ```
 
 mod combine;
+pub mod confidence;
 mod correct;
 mod face;
 mod proposals;

@@ -42,7 +42,7 @@ pub struct FaceReport {
     /// The head's roll under that shear, degrees (positive: the subject's left eye, on the image
     /// right, lower); 0 with [`ShearModel::Equation5`](crate::estimate::ShearModel::Equation5).
     pub roll_degrees: f64,
-    /// How far the estimate can be trusted, from 0 to 1 (see [`estimate::confidence`](crate::estimate::confidence)).
+    /// How far the estimate can be trusted, from 0 to 1 (see [`pipeline::confidence`](crate::pipeline::confidence)).
     pub confidence: f64,
     /// Peak-to-sidelobe ratios of right eye, left eye, right nostril, left nostril and mouth
     /// (0 without a mouth filter; with the landmark network, which has no correlation peaks for

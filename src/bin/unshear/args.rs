@@ -98,7 +98,7 @@ pub struct ModelArgs {
     pub shear_model: Option<ShearModelArg>,
     /// Refuse a face's estimate (report `"k": null`, do not correct by it) below this
     /// confidence (0 to 1).
-    #[arg(help_heading = "Correction", long, value_name = "C", default_value_t = unshear::estimate::DEFAULT_MIN_CONFIDENCE)]
+    #[arg(help_heading = "Correction", long, value_name = "C", default_value_t = unshear::config::DEFAULT_MIN_CONFIDENCE)]
     pub min_confidence: f64,
     /// Detect in the image as it is only (the paper's single pass): no de-sheared or turned
     /// retries when no face is found.

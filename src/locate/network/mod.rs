@@ -2,7 +2,7 @@
 //! convolutional network in a crop of the face, and the shear read off the same crop.
 //!
 //! The network is trained by this project (`scripts/train_landmarks.py`, on crops that
-//! [`training::export_crops`] cuts from the Caltech development faces) with the crops sheared
+//! `dev::landmark_crops::export_crops` cuts from the Caltech development faces) with the crops sheared
 //! and turned at random, so that it has no preference for an unsheared face: a landmark model
 //! trained on upright faces only pulls its points back towards an upright face and under-reads
 //! the shear. Where the crop comes from is described by a [`CropFrame`]; the same frame maps
@@ -10,8 +10,6 @@
 
 pub mod crop;
 pub mod net;
-#[cfg(feature = "dev")]
-pub mod training;
 
 pub use crop::{crop_shear, residual_from_crop_shear, CropFrame};
 pub use net::{LandmarkNet, NetOutput, Workspace};
@@ -74,14 +72,14 @@ fn frame_with_geometry(
 
 /// How far the mouth axis's shear is extrapolated away from the nose axis's to cancel yaw, for
 /// the network's points (see [`crate::estimate::yaw_corrected`]).
-pub const NETWORK_YAW_EXTRAPOLATION: f64 = 0.3;
+pub(crate) const NETWORK_YAW_EXTRAPOLATION: f64 = 0.3;
 
 /// The weight of the network's own reading of the shear in the estimate; the rest is the shear
 /// the located points give ([`LocatedFace::k_points`]).
-pub const NETWORK_SHEAR_WEIGHT: f64 = 1.0;
+pub(crate) const NETWORK_SHEAR_WEIGHT: f64 = 1.0;
 
 /// Most crops per face ([`locate`]).
-pub const MAX_PASSES: usize = 8;
+pub(crate) const MAX_PASSES: usize = 8;
 
 /// How much work [`locate_within`] may spend on one face: the most crops, the most reads per
 /// crop pixel and axis when rendering them ([`CropFrame::render_with`]), and how little the
@@ -92,16 +90,15 @@ pub struct Budget {
     pub max_passes: usize,
     /// Most reads per crop pixel and axis.
     pub max_supersampling: usize,
-    /// Change of the estimated shear below which it stops ([`SHEAR_TOLERANCE`] for stills).
+    /// Change of the estimated shear below which it stops (0.03 for stills).
     pub shear_tolerance: f64,
-    /// Change of the estimated roll, radians, below which it stops ([`ROLL_TOLERANCE`] for
-    /// stills).
+    /// Change of the estimated roll, radians, below which it stops (0.05 for stills).
     pub roll_tolerance: f64,
 }
 
 impl Budget {
-    /// For stills (what [`locate`] uses): [`MAX_PASSES`] crops, [`crop::MAX_SUPERSAMPLING`]
-    /// reads, [`SHEAR_TOLERANCE`] and [`ROLL_TOLERANCE`].
+    /// For stills (what [`locate`] uses): up to 8 crops, stopping when the shear changes by
+    /// less than 0.03 and the roll by less than 0.05 rad from one crop to the next.
     pub const STILL: Self = Self {
         max_passes: MAX_PASSES,
         max_supersampling: crop::MAX_SUPERSAMPLING,
@@ -111,14 +108,8 @@ impl Budget {
 
     /// For video, where a temporal filter averages the frames' estimates and the frame rate
     /// matters: 2 crops (the first from the tracker's box, the second around the eyes found
-    /// there), 2 reads per axis. On a 1920x1080 clip with a 440 px face it took
-    /// `cargo bench --bench video` from 39 to 70 frames/s, while the synthetic clip's
-    /// per-frame rms error about the still face's bias went from 0.0012 to 0.0023 (see the
-    /// README's *Video*).
-    ///
-    /// Its tolerances are the stills' earlier ones, [`VIDEO_SHEAR_TOLERANCE`] and
-    /// [`VIDEO_ROLL_TOLERANCE`], so that a frame almost always takes its second crop, centred
-    /// on the eyes found in the first.
+    /// there), 2 reads per axis, and tighter tolerances so that a frame almost always takes its
+    /// second crop (docs/video.md).
     pub const VIDEO: Self = Self {
         max_passes: 2,
         max_supersampling: 2,
@@ -133,63 +124,28 @@ impl Default for Budget {
     }
 }
 
-/// Change of the estimated shear below which [`locate`] stops re-cropping.
-///
-/// The estimate is the crop's own shear plus the network's reading of what is left in it, so
-/// stopping while that reading is under the tolerance leaves up to that much for the network
-/// to read instead of for the crop to remove; it is not thrown away, and the network reads a
-/// residual this small about as well as none. Loosened from 0.01 (and 0.02 rad of roll): on
-/// all 928 development faces at k = 0 and +-0.40, 2484 of 2784 estimates were within 0.05 of
-/// the true k against 2474, 1498 within 0.02 against 1515, both eyes within 0.10 on the same
-/// share, the same faces found but one more per shear; a face now takes 3.2 crops on average
-/// instead of 4.1 (the runs of the network that ended on a face, first 150 of those faces),
-/// and one crop instead of two where its box frames it nearly upright and unsheared, as the
-/// bench's face. What a tighter tolerance buys is consistency: between the sheared and
-/// unsheared copies of one face (median tracking error 0.0043 here, 0.0028 with 0.01 and 0.001
-/// with 0.001) and between starts (see the test `the_estimate_hardly_depends_on_the_start`).
-/// README, *Performance*.
-pub const SHEAR_TOLERANCE: f64 = 0.03;
+/// Change of the estimated shear below which [`locate`] stops re-cropping: what is left is read
+/// by the network instead of removed by the crop, about as well; a tighter tolerance buys
+/// consistency between starts for more crops (docs/how-it-works.md).
+pub(crate) const SHEAR_TOLERANCE: f64 = 0.03;
 
-/// [`Budget::VIDEO`]'s shear tolerance (the stills' until this build; see [`SHEAR_TOLERANCE`]).
-///
-/// With the stills' looser tolerance a video frame often stops at its first crop, made from the
-/// tracker's box rather than centred on the eyes, and that reading moves with the box from
-/// frame to frame: on the synthetic pan of `tests/video.rs` the per-frame estimates' rms about
-/// the still face's bias was 0.0142 with the stills' tolerance against 0.0024 with this one,
-/// and the smoothed `k` 0.039 off at its worst against 0.021 (the test's bound is 0.03). A
-/// temporal filter cannot remove noise that large, and video has only two crops to spend, so
-/// it keeps the tighter tolerance.
-pub const VIDEO_SHEAR_TOLERANCE: f64 = 0.01;
+/// [`Budget::VIDEO`]'s shear tolerance: with the stills' looser one a frame often stops at its
+/// first crop, made from the tracker's box, whose reading moves with the box from frame to frame.
+pub(crate) const VIDEO_SHEAR_TOLERANCE: f64 = 0.01;
 
-/// [`Budget::VIDEO`]'s roll tolerance, radians (the stills' until this build).
-pub const VIDEO_ROLL_TOLERANCE: f64 = 0.02;
+/// [`Budget::VIDEO`]'s roll tolerance, radians.
+pub(crate) const VIDEO_ROLL_TOLERANCE: f64 = 0.02;
 
 /// How many crops [`locate`] makes of something that is not a face before it gives up: when
 /// the face score of each of the first `NO_FACE_PASSES` crops is below [`NO_FACE_SCORE`], the
-/// last reading is returned (its face score tells the caller there is no face) instead of
-/// re-cropping up to the budget.
-///
-/// Most of the boxes the thorough face search asks the network to judge are not faces, and
-/// their crops never settle, so they ran to [`MAX_PASSES`]. Measured on the first 150 Caltech
-/// development faces at k = 0 and +0.40 (2416 runs of the network): 1923 runs ended on no face
-/// (score under 0.5); stopping after 3 crops scored under 0.001 saves 29% of all crops. 10 of
-/// the 435 runs that ended on a face score of 0.9 or more are cut: walks from a box off the
-/// face (rolls read up to 80 degrees on the way) that reached a face score only at the 4th to
-/// 8th crop. On all 928 development faces at k = 0 and +-0.40 the same faces were found as
-/// without the early stop, and one estimate of the 2784 changed, by 0.007 (README,
-/// *Performance*).
-pub const NO_FACE_PASSES: usize = 3;
+/// last reading is returned. Most boxes the thorough search asks about are not faces, and their
+/// crops never settle.
+pub(crate) const NO_FACE_PASSES: usize = 3;
 
 /// From this crop on, the walk of crops stops when the shear changed no less than at the crop
-/// before (`stalled` in this module): the estimate is no longer closing in on a fixed point (it
-/// swings about one, or drifts), and further crops cost time without settling it.
-///
-/// Measured on all 928 Caltech development faces at nine shears (README, *Accuracy*): the same
-/// accuracy or a little better in every column, and 19% fewer crops (faces took 2.60 crops on
-/// average instead of 3.20 on the first 150 faces at k = 0 and +-0.40). It needed the pipeline to
-/// also join a report from a box that holds both eyes of a face already kept (a walk stopped
-/// early can end away from where another box's walk put that face).
-pub const STALL_PASSES: usize = 3;
+/// before (`stalled` in this module): the estimate is no longer closing in on a fixed point, and
+/// further crops cost time without settling it.
+pub(crate) const STALL_PASSES: usize = 3;
 
 /// Whether a walk of crops has stalled at crop `pass` (1 for the first): from [`STALL_PASSES`]
 /// on, the estimated shear changed by `change` at this crop and by `previous_change` at the
@@ -200,14 +156,13 @@ fn stalled(pass: usize, change: f64, previous_change: f64) -> bool {
 
 /// The face score under which a crop counts as showing no face for [`NO_FACE_PASSES`]: the
 /// network's face score on non-face crops is mostly below 0.001, on faces mostly above 0.9.
-pub const NO_FACE_SCORE: f64 = 0.001;
+pub(crate) const NO_FACE_SCORE: f64 = 0.001;
 
-/// Change of the estimated roll (radians, about 2.9 degrees) below which [`locate`] stops
-/// (loosened with [`SHEAR_TOLERANCE`], from 0.01 and then 0.02).
-pub const ROLL_TOLERANCE: f64 = 0.05;
+/// Change of the estimated roll (radians, about 2.9 degrees) below which [`locate`] stops.
+pub(crate) const ROLL_TOLERANCE: f64 = 0.05;
 
-/// The largest shear [`locate`] will crop with (as `features::MAX_SHEAR`).
-pub const MAX_CROP_SHEAR: f64 = 0.8;
+/// The largest shear [`locate`] will crop with (as the filters' `MAX_SHEAR`).
+pub(crate) const MAX_CROP_SHEAR: f64 = 0.8;
 
 /// What the network found in one face, image pixels.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -221,7 +176,7 @@ pub struct LocatedFace {
     /// The mouth centre.
     pub mouth: Point,
     /// The shear the points give: the mouth axis's shear-and-roll reading extrapolated away from
-    /// the nose axis's by [`NETWORK_YAW_EXTRAPOLATION`]; `None` when the points allow none.
+    /// the nose axis's by 0.3 to cancel yaw; `None` when the points allow none.
     pub k_points: Option<f64>,
     /// The nose axis's own reading.
     pub k_nose: Option<f64>,
@@ -230,8 +185,8 @@ pub struct LocatedFace {
     /// The network's own reading of the shear, in the image's frame (`k_points` where the
     /// crop's roll leaves no image shear for that reading, near 45 degrees).
     pub k_network: f64,
-    /// The estimate: [`NETWORK_SHEAR_WEIGHT`] of `k_network` and the rest `k_points`
-    /// (`k_network` alone when the points give none).
+    /// The estimate: the network's own reading `k_network`, weighted against `k_points` by
+    /// the network shear weight (1: `k_network` alone).
     pub k: f64,
     /// The head's roll under that shear, radians (as [`crate::estimate::ShearRoll::roll`]).
     pub roll: f64,
@@ -273,11 +228,10 @@ fn upright_distance(a: Point, b: Point, k: f64) -> f64 {
 /// Locates the landmarks of the face that `start` frames (from a detector's box, or a previous
 /// estimate) and estimates its shear: the network reads a crop, the shear and roll are
 /// estimated from what it found, and the face is cropped again around the eyes found with
-/// that shear and roll removed, until the estimate stops changing ([`SHEAR_TOLERANCE`],
-/// [`ROLL_TOLERANCE`]) or after [`MAX_PASSES`] crops. The network then sees a nearly upright,
-/// unsheared face, the kind it reads best. A walk whose estimate stops closing in is ended too
-/// ([`STALL_PASSES`]), and something that is not a face is given up on after
-/// [`NO_FACE_PASSES`] crops. `None` when a crop cannot be made or the network's reading is not
+/// that shear and roll removed, until the estimate stops changing or after the budget's crops ([`Budget::STILL`]). The
+/// network then sees a nearly upright, unsheared face, the kind it reads best. A walk whose
+/// estimate stops closing in is ended too, and something that is not a face is given up on
+/// after three crops. `None` when a crop cannot be made or the network's reading is not
 /// finite.
 pub fn locate(
     net: &LandmarkNet,

@@ -3,7 +3,7 @@
 //! will ask for, with the annotated points and the crop's shear as labels.
 //!
 //! The crops are cut with the same code the run-time locator uses
-//! ([`super::CropFrame::render`]), so the network is trained on exactly what it will see. The
+//! ([`crate::locate::network::CropFrame::render`]), so the network is trained on exactly what it will see. The
 //! distributions:
 //!
 //! * **placement**: the frame is built around the annotated eyes ([`frame_around_eyes`]) with
@@ -35,11 +35,13 @@ use std::io::Write;
 
 use rayon::prelude::*;
 
-use super::{crop_shear, frame_around_eyes};
 use crate::dev::dataset::AnnotatedFace;
 use crate::error::{Error, Result};
 use crate::geometry::{Point, Shear};
 use crate::imageio;
+use crate::locate::network::{
+    crop_shear, frame_around_eyes, CROP_EYE_DISTANCES, CROP_SIZE, EYES_ABOVE_CENTRE,
+};
 use crate::rng::SplitMix64;
 use crate::warp::{try_apply_shear, Canvas, Interpolation, Placement};
 
@@ -94,7 +96,7 @@ pub struct ExportOptions {
 impl Default for ExportOptions {
     fn default() -> Self {
         Self {
-            size: super::CROP_SIZE,
+            size: CROP_SIZE,
             per_face: 24,
             min_eye_distance: 15.0,
             max_eye_distance: 40.0,
@@ -355,8 +357,8 @@ pub fn export_crops(
         "crops": summary.crops,
         "negatives": summary.negatives,
         "label_fields": LABEL_FIELDS,
-        "crop_eye_distances": super::CROP_EYE_DISTANCES,
-        "eyes_above_centre": super::EYES_ABOVE_CENTRE,
+        "crop_eye_distances": CROP_EYE_DISTANCES,
+        "eyes_above_centre": EYES_ABOVE_CENTRE,
     });
     let meta_path = out_dir.join("meta.json");
     std::fs::write(&meta_path, meta.to_string()).map_err(io_error(&meta_path))?;
@@ -498,7 +500,7 @@ mod tests {
         ];
         let samples = face_samples(&versions, &face, 3, &options);
         assert_eq!(samples.len(), 20);
-        let unit = 48.0 / super::super::CROP_EYE_DISTANCES;
+        let unit = 48.0 / CROP_EYE_DISTANCES;
         let own = crate::estimate::shear_and_roll(Point::new(40.0, 2.0), Point::new(1.0, 44.0))
             .expect("solvable")
             .k;

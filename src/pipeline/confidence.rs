@@ -1,19 +1,16 @@
 //! How far each face's estimate can be trusted: logistic models of the chance that it is within
 //! 0.10 of the true shear, fitted by `scripts/fit_confidence.py` (docs/how-it-works.md).
 
-use super::FaceEstimate;
 use crate::detect::boxes::EYE_DISTANCE_PER_BOX_WIDTH;
+use crate::estimate::FaceEstimate;
 use crate::filters::FilterType;
+use crate::fitted;
 use crate::geometry::Rect;
 use crate::locate::filters::FacePoints;
 use crate::locate::network::LocatedFace;
 
-/// Default confidence below which a face's estimate is refused: about the least trustworthy fifth
-/// of the estimates on web photos.
-pub const DEFAULT_MIN_CONFIDENCE: f64 = 0.25;
-
 /// A logistic confidence model: weights of [`confidence`]'s features, in their order, and the
-/// intercept. Printed by `scripts/fit_confidence.py`.
+/// intercept. Fitted by `scripts/fit_confidence.py`, which generates them into `src/fitted.rs`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ConfidenceModel {
     /// One weight per feature.
@@ -40,42 +37,36 @@ impl ConfidenceModel {
     }
 
     /// The model fitted for filters of type `kind`: the peak-to-sidelobe ratios of the three
-    /// filter types live on different scales, so each has its own fit (see [`confidence`]).
+    /// filter types live on different scales, so each has its own fit (see [`confidence`]; the
+    /// values are generated into `src/fitted.rs`, which names the commands each was fitted by).
     pub fn for_filters(kind: FilterType) -> Self {
         match kind {
-            // Each fitted on the estimates of the first 300 faces in image-path order
-            // (`fit_confidence.py --fit-first 300`), with the filters trained on the annotations
-            // read as 1-based (see `dataset::CALTECH_PIXEL_ORIGIN`), and checked on the other
-            // 628 faces' estimates. UMACE: fitted on 845, AUC 0.836 on 1777.
             FilterType::Umace => Self {
-                weights: [0.452, -0.137, 3.087, 0.938, -6.348, -0.636, -0.134],
-                intercept: -4.204,
+                weights: fitted::CONFIDENCE_UMACE_WEIGHTS,
+                intercept: fitted::CONFIDENCE_UMACE_INTERCEPT,
             },
-            // ASEF: fitted on 848, AUC 0.825 on 1776.
             FilterType::Asef => Self {
-                weights: [1.021, 0.070, 2.528, 0.937, -8.181, -0.310, -0.046],
-                intercept: -3.803,
+                weights: fitted::CONFIDENCE_ASEF_WEIGHTS,
+                intercept: fitted::CONFIDENCE_ASEF_INTERCEPT,
             },
-            // MOSSE: fitted on 847, AUC 0.818 on 1782.
             FilterType::Mosse => Self {
-                weights: [1.042, 0.238, 3.019, 1.074, -9.038, -0.327, -0.558],
-                intercept: -4.348,
+                weights: fitted::CONFIDENCE_MOSSE_WEIGHTS,
+                intercept: fitted::CONFIDENCE_MOSSE_INTERCEPT,
             },
         }
     }
 
     /// The model fitted for the landmark network (see [`network_confidence`]).
     ///
-    /// Fitted by `scripts/fit_confidence.py target/d3 --fit-first 300 --locator network` on
-    /// `unshear eval shear --k=0,0.4,-0.4 --min-confidence 0 --out target/d3`: 848 estimates of
-    /// the first 300 faces, only 5 of them more than 0.10 off, so the weights are loose (the nose
-    /// and mouth axes' disagreement even gets a positive weight); checked on the other 628
-    /// faces (1782 estimates, 98.5% within 0.10): AUC 0.762, and at the default threshold it
-    /// refuses 12 good estimates and keeps 25 bad ones. The network rarely fails on a face; the
-    /// face score, the other factor, is what refuses non-faces.
+    /// Fitted by `scripts/fit_confidence.py --model network` on the estimates of the first 300
+    /// faces at k = 0 and +-0.40, and checked on the other 628 faces (`src/fitted.rs` names the
+    /// commands). The network is rarely more than 0.10 off on a face, so the fit has few bad
+    /// estimates to learn from and its weights are loose (the nose and mouth axes'
+    /// disagreement even gets a positive weight); the face score, the other factor, is what
+    /// refuses non-faces.
     pub const NETWORK: Self = Self {
-        weights: [-44.117, -12.666, -46.895, -34.514, 23.092, 0.843, -0.628],
-        intercept: 27.316,
+        weights: fitted::CONFIDENCE_NETWORK_WEIGHTS,
+        intercept: fitted::CONFIDENCE_NETWORK_INTERCEPT,
     };
 }
 
