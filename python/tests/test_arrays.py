@@ -204,6 +204,9 @@ def test_bad_options_raise_value_error(quick: unshear.Unshear, face: np.ndarray)
             quick.correct(face, **kwargs)  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="finite"):
         unshear.distort(face, float("nan"))
+    other = quick.estimate(face[:, :300])
+    with pytest.raises(ValueError, match="the report is of a 300x243 image"):
+        quick.correct(face, report=other)
 
 
 def test_no_face_raises_no_face_error(quick: unshear.Unshear) -> None:
@@ -215,3 +218,15 @@ def test_no_face_raises_no_face_error(quick: unshear.Unshear) -> None:
     assert issubclass(unshear.NoFaceError, ValueError)
     # With a shear given, a face is not needed.
     assert quick.correct(blank, 0.2).shape == blank.shape
+
+
+def test_face_region_keeps_the_rest(quick: unshear.Unshear, face: np.ndarray) -> None:
+    canvas = np.full((400, 700, 3), 30, np.uint8)
+    canvas[60 : 60 + face.shape[0], 40 : 40 + face.shape[1]] = face
+    report = quick.estimate(canvas)
+    assert report.k is not None
+    out = quick.correct(canvas, region="face", report=report)
+    assert out.shape == canvas.shape
+    # Far from the face nothing moves; on the face the rows do.
+    assert np.array_equal(out[:, 600:], canvas[:, 600:])
+    assert not np.array_equal(out[100:250, 100:350], canvas[100:250, 100:350])
