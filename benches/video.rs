@@ -35,6 +35,7 @@ fn clip() -> Vec<u8> {
         chroma: Chroma::Yuv420,
         full_range: false,
         frame_rate: (30, 1),
+        bit_depth: 8,
     };
     let mut w = Y4mWriter::new(Vec::new(), &format).expect("header");
     for t in 0..FRAMES {

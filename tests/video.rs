@@ -81,6 +81,7 @@ fn format() -> VideoFormat {
         chroma: Chroma::Yuv420,
         full_range: true,
         frame_rate: (25, 1),
+        bit_depth: 8,
     }
 }
 

@@ -156,9 +156,8 @@ fn frames_out(
         .map(|(frame, result)| {
             let image = match frame {
                 VideoFrame::Image(img) => to_array(py, img, layout)?,
-                VideoFrame::Yuv(_) => {
-                    return Err(PyRuntimeError::new_err("unexpected YUV frame"));
-                }
+                // Only images are pushed, and the processor hands each frame back as it came.
+                _ => return Err(PyRuntimeError::new_err("unexpected YUV frame")),
             };
             Ok(Frame {
                 image: image.unbind(),

@@ -77,6 +77,7 @@ pub fn image_to_yuv(img: &DynamicImage, chroma: Chroma, full_range: bool) -> Yuv
     YuvFrame {
         chroma,
         full_range,
+        bit_depth: 8,
         u: plane(&sum_u),
         v: plane(&sum_v),
         y,

@@ -201,6 +201,8 @@ impl FrameSink for FrameFolderWriter {
         let img = match frame {
             VideoFrame::Image(i) => i,
             VideoFrame::Yuv(f) => yuv_to_image(&f),
+            // Images are written at 8 bits.
+            VideoFrame::Yuv16(f) => yuv_to_image(&f.to_8bit()),
         };
         let path = self.frame_path(self.next);
         imageio::write_image_atomic(&img, &path, self.options.clone())?;
@@ -215,19 +217,19 @@ impl FrameSink for FrameFolderWriter {
 
 impl<R: Read + Send> FrameSource for Y4mReader<R> {
     fn next_frame(&mut self) -> Result<Option<VideoFrame>> {
-        Ok(self.read_frame()?.map(VideoFrame::Yuv))
+        self.read_video_frame()
     }
 }
 
 impl<W: Write + Send> FrameSink for Y4mWriter<W> {
     fn write_frame(&mut self, frame: VideoFrame) -> Result<()> {
         match frame {
-            VideoFrame::Yuv(f) => Y4mWriter::write_frame(self, &f),
             VideoFrame::Image(i) => {
                 let f = self.format();
                 let yuv = image_to_yuv(&i, f.chroma, f.full_range);
                 Y4mWriter::write_frame(self, &yuv)
             }
+            yuv => self.write_video_frame(&yuv),
         }
     }
 

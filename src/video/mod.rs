@@ -19,14 +19,19 @@
 //! * [`process`]: all of the above per frame ([`VideoProcessor`], which holds frames back
 //!   for the smoother's lag and flushes them at the end) and the threaded
 //!   read → process → write loop ([`run`]).
+//! * [`ffmpeg`]: what the `ffmpeg` and `ffprobe` programs are asked to do for containers (MP4,
+//!   MOV, MKV, WebM): their command lines and the parsing of `ffprobe`'s JSON. The library
+//!   starts no process; the `unshear video` command runs them.
 //!
 //! # Formats
 //!
 //! Supported y4m layouts: 8-bit `Cmono`, `C420`, `C420jpeg`, `C420mpeg2`, `C420paldv`, `C422`,
-//! `C444` (a missing `C` tag means 4:2:0, as in FFmpeg). **Not supported** (refused with an
-//! error naming the tag): 10-, 12- and 16-bit samples (`C420p10` and the like), `C411`,
-//! `C444alpha`, interlaced material is processed as if progressive (the `I` tag is kept but
-//! fields are not separated). Frame folders take every format [`crate::imageio`] reads.
+//! `C444` (a missing `C` tag means 4:2:0, as in FFmpeg), and high bit depth `C420p10`,
+//! `C422p10`, `C444p10`, `C420p12`, `C422p12`, `C444p12`, `Cmono12` (little-endian 16-bit
+//! samples, [`YuvFrame<u16>`], corrected and written at their own depth). **Not supported**
+//! (refused with an error naming the tag): other depths (`C420p9`, `C420p16`, `Cmono10`...),
+//! `C411`, `C444alpha`; interlaced material is processed as if progressive (the `I` tag is kept
+//! but fields are not separated). Frame folders take every format [`crate::imageio`] reads.
 //!
 //! # Geometry of the correction
 //!
@@ -37,9 +42,11 @@
 //! chroma pixels. So the chroma plane is de-sheared with `k' = k vs / hs` about chroma row
 //! `(c - o) / vs` (see [`chroma_shear`]); for 4:2:0 that is the same `k` about `(c - 0.5) / 2`.
 //! Pixels shifted in from outside the frame get the plane's neutral value (black: 16 for
-//! limited-range luma, 0 for full range; 128 for chroma), not the 0 that still images get.
+//! limited-range luma, 0 for full range; 128 for chroma; times `2^(depth - 8)` at higher bit
+//! depths), not the 0 that still images get.
 
 pub mod color;
+pub mod ffmpeg;
 pub mod frames;
 pub mod process;
 pub mod temporal;
@@ -52,7 +59,7 @@ pub use process::{
 
 use std::borrow::Cow;
 
-use image::{DynamicImage, GrayImage};
+use image::{DynamicImage, GrayImage, ImageBuffer, Luma};
 
 use crate::warp::{self, Canvas, Interpolation};
 use crate::{Error, Result, Shear};
@@ -114,6 +121,8 @@ pub struct VideoFormat {
     pub full_range: bool,
     /// Frames per second as a fraction `(numerator, denominator)`.
     pub frame_rate: (u32, u32),
+    /// Bits per sample: 8, or 10 and 12 (stored in 16-bit samples, [`VideoFrame::Yuv16`]).
+    pub bit_depth: u32,
 }
 
 impl VideoFormat {
@@ -127,45 +136,160 @@ impl VideoFormat {
         }
     }
 
-    /// Bytes of one frame's samples (8-bit).
+    /// Bytes of one frame's samples (two bytes a sample above 8 bits).
     pub fn frame_bytes(&self) -> u64 {
         let (cw, ch) = self.chroma.plane_size(self.width, self.height);
-        u64::from(self.width) * u64::from(self.height) + 2 * u64::from(cw) * u64::from(ch)
+        let samples =
+            u64::from(self.width) * u64::from(self.height) + 2 * u64::from(cw) * u64::from(ch);
+        samples * self.bytes_per_sample()
+    }
+
+    /// 1 for 8-bit samples, 2 above.
+    pub fn bytes_per_sample(&self) -> u64 {
+        if self.bit_depth > 8 {
+            2
+        } else {
+            1
+        }
     }
 }
 
-/// One 8-bit YUV frame: three planes (U and V empty for mono) and the y4m frame parameters.
+/// One plane of samples: [`GrayImage`] for 8-bit video, 16-bit samples above.
+pub type Plane<T> = ImageBuffer<Luma<T>, Vec<T>>;
+
+mod sealed {
+    pub trait Sealed {}
+    impl Sealed for u8 {}
+    impl Sealed for u16 {}
+}
+
+/// The sample type of a [`YuvFrame`]: `u8` for 8-bit video, `u16` for 10 and 12 bits (values
+/// in the low bits, as in y4m and FFmpeg's `p10le` formats).
+pub trait YuvSample: image::Primitive + Send + Sync + sealed::Sealed + 'static {
+    /// The sample of a value, rounded and clamped to `0..=max`.
+    fn from_f64(v: f64, max: u32) -> Self;
+    /// The value as `f64`.
+    fn to_f64(self) -> f64;
+    /// The plane as an image the warp takes (`Luma8` or `Luma16`), without copying.
+    fn into_image(plane: Plane<Self>) -> DynamicImage;
+    /// The plane back out of the warp's result.
+    fn from_image(image: DynamicImage) -> Plane<Self>;
+}
+
+impl YuvSample for u8 {
+    fn from_f64(v: f64, max: u32) -> Self {
+        v.round().clamp(0.0, f64::from(max.min(255))) as u8
+    }
+    fn to_f64(self) -> f64 {
+        f64::from(self)
+    }
+    fn into_image(plane: Plane<Self>) -> DynamicImage {
+        DynamicImage::ImageLuma8(plane)
+    }
+    fn from_image(image: DynamicImage) -> Plane<Self> {
+        match image {
+            DynamicImage::ImageLuma8(g) => g,
+            other => other.to_luma8(),
+        }
+    }
+}
+
+impl YuvSample for u16 {
+    fn from_f64(v: f64, max: u32) -> Self {
+        v.round().clamp(0.0, f64::from(max.min(65535))) as u16
+    }
+    fn to_f64(self) -> f64 {
+        f64::from(self)
+    }
+    fn into_image(plane: Plane<Self>) -> DynamicImage {
+        DynamicImage::ImageLuma16(plane)
+    }
+    fn from_image(image: DynamicImage) -> Plane<Self> {
+        match image {
+            DynamicImage::ImageLuma16(g) => g,
+            other => other.to_luma16(),
+        }
+    }
+}
+
+/// One YUV frame: three planes (U and V empty for mono) and the y4m frame parameters. 8-bit
+/// by default; `YuvFrame<u16>` holds 10- and 12-bit video.
 #[derive(Debug, Clone, PartialEq)]
-pub struct YuvFrame {
+pub struct YuvFrame<T: YuvSample = u8> {
     /// Colour layout of the planes.
     pub chroma: Chroma,
     /// Whether samples are full range (decides the fill value of luma).
     pub full_range: bool,
+    /// Bits per sample (8 for `u8` planes; 10 or 12 for `u16`): decides fill values and the
+    /// largest value a correction may produce.
+    pub bit_depth: u32,
     /// Luma.
-    pub y: GrayImage,
+    pub y: Plane<T>,
     /// Blue-difference chroma (Cb).
-    pub u: GrayImage,
+    pub u: Plane<T>,
     /// Red-difference chroma (Cr).
-    pub v: GrayImage,
+    pub v: Plane<T>,
     /// The text after `FRAME ` in a y4m stream, kept for the output.
     pub params: Option<Vec<u8>>,
 }
 
-impl YuvFrame {
-    /// A frame of constant planes (black for the range, neutral chroma).
+impl<T: YuvSample> YuvFrame<T> {
+    /// A frame of constant planes (black for the range, neutral chroma) at `format`'s bit
+    /// depth.
     pub fn blank(format: &VideoFormat) -> Self {
         let (cw, ch) = format.chroma.plane_size(format.width, format.height);
+        let depth = format.bit_depth;
+        let max = max_value(depth);
+        let black = T::from_f64(luma_black(format.full_range, depth), max);
+        let neutral = T::from_f64(chroma_neutral(depth), max);
         Self {
             chroma: format.chroma,
             full_range: format.full_range,
-            y: GrayImage::from_pixel(
-                format.width,
-                format.height,
-                image::Luma([luma_black(format.full_range)]),
-            ),
-            u: GrayImage::from_pixel(cw, ch, image::Luma([128])),
-            v: GrayImage::from_pixel(cw, ch, image::Luma([128])),
+            bit_depth: depth,
+            y: Plane::from_pixel(format.width, format.height, Luma([black])),
+            u: Plane::from_pixel(cw, ch, Luma([neutral])),
+            v: Plane::from_pixel(cw, ch, Luma([neutral])),
             params: None,
+        }
+    }
+}
+
+impl YuvFrame<u16> {
+    /// The luma plane reduced to 8 bits (rounded), for face detection and measurement.
+    pub fn luma8(&self) -> GrayImage {
+        let shift = self.bit_depth.saturating_sub(8).min(15);
+        let half = if shift == 0 { 0 } else { 1u32 << (shift - 1) };
+        let (w, h) = self.y.dimensions();
+        let data = self
+            .y
+            .as_raw()
+            .iter()
+            .map(|&v| ((u32::from(v) + half) >> shift).min(255) as u8)
+            .collect();
+        GrayImage::from_raw(w, h, data).unwrap_or_else(|| GrayImage::new(w, h))
+    }
+
+    /// The frame reduced to 8 bits (rounded), e.g. to be written as images.
+    pub fn to_8bit(&self) -> YuvFrame {
+        let shift = self.bit_depth.saturating_sub(8).min(15);
+        let half = if shift == 0 { 0 } else { 1u32 << (shift - 1) };
+        let reduce = |p: &Plane<u16>| {
+            let data = p
+                .as_raw()
+                .iter()
+                .map(|&v| ((u32::from(v) + half) >> shift).min(255) as u8)
+                .collect();
+            GrayImage::from_raw(p.width(), p.height(), data)
+                .unwrap_or_else(|| GrayImage::new(p.width(), p.height()))
+        };
+        YuvFrame {
+            chroma: self.chroma,
+            full_range: self.full_range,
+            bit_depth: 8,
+            y: reduce(&self.y),
+            u: reduce(&self.u),
+            v: reduce(&self.v),
+            params: self.params.clone(),
         }
     }
 }
@@ -174,8 +298,10 @@ impl YuvFrame {
 /// frame folder.
 #[derive(Debug, Clone, PartialEq)]
 pub enum VideoFrame {
-    /// Planes from a y4m stream.
+    /// 8-bit planes from a y4m stream.
     Yuv(YuvFrame),
+    /// 10- or 12-bit planes from a y4m stream, in 16-bit samples.
+    Yuv16(YuvFrame<u16>),
     /// An image from a frame folder (any channel layout [`crate::imageio`] reads).
     Image(DynamicImage),
 }
@@ -185,15 +311,18 @@ impl VideoFrame {
     pub fn dimensions(&self) -> (u32, u32) {
         match self {
             VideoFrame::Yuv(f) => f.y.dimensions(),
+            VideoFrame::Yuv16(f) => f.y.dimensions(),
             VideoFrame::Image(i) => (i.width(), i.height()),
         }
     }
 
-    /// The grey picture that faces are detected and measured on: the Y plane itself for YUV
-    /// (borrowed, no copy), OpenCV's grey conversion for images.
+    /// The grey picture that faces are detected and measured on: the Y plane itself for 8-bit
+    /// YUV (borrowed, no copy), the Y plane rounded to 8 bits for deeper YUV, OpenCV's grey
+    /// conversion for images.
     pub fn luma(&self) -> Cow<'_, GrayImage> {
         match self {
             VideoFrame::Yuv(f) => Cow::Borrowed(&f.y),
+            VideoFrame::Yuv16(f) => Cow::Owned(f.luma8()),
             VideoFrame::Image(i) => Cow::Owned(crate::detect::to_gray_opencv(i)),
         }
     }
@@ -209,6 +338,10 @@ impl VideoFrame {
                 remove_shear_yuv(&mut f, k, interp)?;
                 Ok(VideoFrame::Yuv(f))
             }
+            VideoFrame::Yuv16(mut f) => {
+                remove_shear_yuv(&mut f, k, interp)?;
+                Ok(VideoFrame::Yuv16(f))
+            }
             VideoFrame::Image(i) => {
                 let shear = Shear::about_middle(k, i.height());
                 Ok(VideoFrame::Image(
@@ -219,13 +352,28 @@ impl VideoFrame {
     }
 }
 
-/// Luma of black: 0 in full range, 16 in limited range.
-fn luma_black(full_range: bool) -> u8 {
+/// Luma of black: 0 in full range, 16 in limited range (scaled to the bit depth).
+fn luma_black(full_range: bool, bit_depth: u32) -> f64 {
     if full_range {
-        0
+        0.0
     } else {
-        16
+        16.0 * depth_scale(bit_depth)
     }
+}
+
+/// Chroma of grey: 128 at 8 bits (scaled to the bit depth).
+fn chroma_neutral(bit_depth: u32) -> f64 {
+    128.0 * depth_scale(bit_depth)
+}
+
+/// `2^(depth - 8)`: how much larger a level is at `bit_depth` than at 8 bits.
+fn depth_scale(bit_depth: u32) -> f64 {
+    f64::from(1u32 << bit_depth.clamp(8, 16).saturating_sub(8))
+}
+
+/// The largest sample value at `bit_depth` (255 at 8 bits, 1023 at 10).
+fn max_value(bit_depth: u32) -> u32 {
+    (1u32 << bit_depth.clamp(1, 16)) - 1
 }
 
 /// The shear that a chroma plane of `chroma` needs so that it moves with a luma plane of
@@ -238,11 +386,17 @@ pub fn chroma_shear(chroma: Chroma, k: f64, height: u32) -> Shear {
 }
 
 /// De-shears every plane of `frame` in place by `k` (luma about `H / 2`, chroma by
-/// [`chroma_shear`]); uncovered pixels become black luma and neutral chroma.
+/// [`chroma_shear`]); uncovered pixels become black luma and neutral chroma. Works at the
+/// frame's own bit depth (16-bit planes are interpolated in `f32`, cubic overshoot clamped to
+/// the depth's range).
 ///
 /// # Errors
 /// [`Error::InvalidArgument`] when `k` is not finite.
-pub fn remove_shear_yuv(frame: &mut YuvFrame, k: f64, interp: Interpolation) -> Result<()> {
+pub fn remove_shear_yuv<T: YuvSample>(
+    frame: &mut YuvFrame<T>,
+    k: f64,
+    interp: Interpolation,
+) -> Result<()> {
     if !k.is_finite() {
         return Err(Error::InvalidArgument(format!("shear {k} is not finite")));
     }
@@ -250,36 +404,35 @@ pub fn remove_shear_yuv(frame: &mut YuvFrame, k: f64, interp: Interpolation) -> 
         return Ok(());
     }
     let height = frame.y.height();
+    let depth = frame.bit_depth;
     let luma = Shear::about_middle(k, height);
-    frame.y = shift_plane(
-        std::mem::take(&mut frame.y),
-        luma,
-        interp,
-        luma_black(frame.full_range),
-    )?;
+    let black = luma_black(frame.full_range, depth);
+    frame.y = shift_plane(std::mem::take(&mut frame.y), luma, interp, black, depth)?;
     if frame.chroma != Chroma::Mono {
         let cs = chroma_shear(frame.chroma, k, height);
-        frame.u = shift_plane(std::mem::take(&mut frame.u), cs, interp, 128)?;
-        frame.v = shift_plane(std::mem::take(&mut frame.v), cs, interp, 128)?;
+        let neutral = chroma_neutral(depth);
+        frame.u = shift_plane(std::mem::take(&mut frame.u), cs, interp, neutral, depth)?;
+        frame.v = shift_plane(std::mem::take(&mut frame.v), cs, interp, neutral, depth)?;
     }
     Ok(())
 }
 
-/// One plane through [`warp::try_remove_shear`] (the AVX2 8-bit path), then the uncovered
+/// One plane through [`warp::try_remove_shear`] (the AVX2 path for 8 bits), then the uncovered
 /// pixels, which the warp fills with 0, re-filled with `fill` with the same linear fade over the
-/// edge pixel.
-fn shift_plane(
-    plane: GrayImage,
+/// edge pixel; above 8 bits, values past the depth's largest (cubic overshoot) are clamped.
+fn shift_plane<T: YuvSample>(
+    plane: Plane<T>,
     shear: Shear,
     interp: Interpolation,
-    fill: u8,
-) -> Result<GrayImage> {
+    fill: f64,
+    bit_depth: u32,
+) -> Result<Plane<T>> {
     let (w, h) = plane.dimensions();
     if w == 0 || h == 0 {
         return Ok(plane);
     }
     // The refill needs only each row's first and last input pixel.
-    let edges: Vec<(u8, u8)> = if fill != 0 {
+    let edges: Vec<(T, T)> = if fill != 0.0 {
         plane
             .as_raw()
             .chunks_exact(w as usize)
@@ -288,18 +441,19 @@ fn shift_plane(
     } else {
         Vec::new()
     };
-    let (out, _) = warp::try_remove_shear(
-        &DynamicImage::ImageLuma8(plane),
-        shear,
-        interp,
-        Canvas::Same,
-    )?;
-    let mut out = match out {
-        DynamicImage::ImageLuma8(g) => g,
-        other => other.to_luma8(),
-    };
-    if fill != 0 {
-        refill_edges(&edges, &mut out, shear, fill);
+    let (out, _) = warp::try_remove_shear(&T::into_image(plane), shear, interp, Canvas::Same)?;
+    let mut out = T::from_image(out);
+    let max = max_value(bit_depth);
+    if bit_depth > 8 && interp != Interpolation::Linear {
+        let top = T::from_f64(f64::from(max), max);
+        for p in out.iter_mut() {
+            if *p > top {
+                *p = top;
+            }
+        }
+    }
+    if fill != 0.0 {
+        refill_edges(&edges, &mut out, shear, fill, max);
     }
     Ok(out)
 }
@@ -308,19 +462,24 @@ fn shift_plane(
 /// outside the input (`edges`: each input row's first and last pixel). Written by hand because
 /// the warp's fill value is fixed at 0; it touches only the pixels beyond the edges, with the
 /// warp's linear fade over the edge pixel, and leaves the interior as the warp made it.
-fn refill_edges(edges: &[(u8, u8)], out: &mut GrayImage, shear: Shear, fill: u8) {
+fn refill_edges<T: YuvSample>(
+    edges: &[(T, T)],
+    out: &mut Plane<T>,
+    shear: Shear,
+    fill: f64,
+    max: u32,
+) {
     let w = out.width() as usize;
     let last = (w - 1) as f64;
-    let fill_f = f64::from(fill);
     for (y, (row_out, &(first, end))) in out.chunks_exact_mut(w).zip(edges).enumerate() {
         // Output x reads input position p = x + d.
         let d = shear.row_shift(y as f64);
-        let (first, end) = (f64::from(first), f64::from(end));
+        let (first, end) = (first.to_f64(), end.to_f64());
         // Left edge: p < 0.
         let left_end = (-d).ceil().clamp(0.0, w as f64) as usize;
         for (x, o) in row_out.iter_mut().enumerate().take(left_end) {
             let t = (x as f64 + d + 1.0).clamp(0.0, 1.0); // weight of the first pixel
-            *o = (fill_f * (1.0 - t) + first * t).round() as u8;
+            *o = T::from_f64(fill * (1.0 - t) + first * t, max);
         }
         // Right edge: p > w - 1.
         let right_start = ((last - d).floor() + 1.0).clamp(0.0, w as f64) as usize;
@@ -334,7 +493,7 @@ fn refill_edges(edges: &[(u8, u8)], out: &mut GrayImage, shear: Shear, fill: u8)
                 continue;
             }
             let t = (p - last).clamp(0.0, 1.0); // weight of the fill
-            *o = (end * (1.0 - t) + fill_f * t).round() as u8;
+            *o = T::from_f64(end * (1.0 - t) + fill * t, max);
         }
     }
 }
@@ -362,6 +521,7 @@ mod tests {
             chroma: Chroma::Yuv420,
             full_range: false,
             frame_rate: (30000, 1001),
+            bit_depth: 8,
         };
         assert_eq!(f.frame_bytes(), 15 + 2 * 6);
         assert!((f.fps() - 29.97).abs() < 0.01);
@@ -400,6 +560,7 @@ mod tests {
             chroma: Chroma::Yuv420,
             full_range: false,
             frame_rate: (25, 1),
+            bit_depth: 8,
         };
         let mut f = YuvFrame::blank(&format);
         f.y = textured(16, 8);
@@ -417,6 +578,7 @@ mod tests {
             chroma: Chroma::Yuv420,
             full_range: false,
             frame_rate: (25, 1),
+            bit_depth: 8,
         };
         let mut f = YuvFrame::blank(&format);
         f.y = GrayImage::from_pixel(40, 40, Luma([200]));
@@ -462,6 +624,7 @@ mod tests {
             chroma: Chroma::Yuv444,
             full_range: true,
             frame_rate: (25, 1),
+            bit_depth: 8,
         };
         let mut f444 = YuvFrame::blank(&format);
         f444.u = full.clone();
@@ -485,5 +648,48 @@ mod tests {
         // 50. (A pivot off by the half-row siting moves chroma by only k / 8 pixel here; the
         // exact formula is checked in `chroma_shear_moves_with_luma`.)
         assert!(worst <= 3, "worst difference {worst}");
+    }
+
+    #[test]
+    fn ten_bit_planes_are_corrected_at_their_depth() {
+        // A 10-bit frame whose values are the 8-bit frame's times 4: the correction must be the
+        // 8-bit one times 4 (to within the 8-bit path's rounding), fill with 64 / 512, and stay
+        // within 0..=1023 with cubic interpolation's overshoot.
+        let format = VideoFormat {
+            width: 48,
+            height: 32,
+            chroma: Chroma::Yuv420,
+            full_range: false,
+            frame_rate: (25, 1),
+            bit_depth: 10,
+        };
+        let mut f8 = YuvFrame::blank(&VideoFormat {
+            bit_depth: 8,
+            ..format.clone()
+        });
+        f8.y = GrayImage::from_fn(48, 32, |x, _| Luma([if x % 8 < 4 { 16 } else { 235 }]));
+        let mut f10: YuvFrame<u16> = YuvFrame::blank(&format);
+        assert_eq!(
+            (f10.y.get_pixel(0, 0)[0], f10.u.get_pixel(0, 0)[0]),
+            (64, 512)
+        );
+        f10.y = Plane::from_fn(48, 32, |x, y| {
+            Luma([u16::from(f8.y.get_pixel(x, y)[0]) * 4])
+        });
+        for interp in [Interpolation::Linear, Interpolation::Cubic] {
+            let (mut a, mut b) = (f8.clone(), f10.clone());
+            remove_shear_yuv(&mut a, 0.37, interp).expect("finite");
+            remove_shear_yuv(&mut b, 0.37, interp).expect("finite");
+            let mut worst = 0i32;
+            for (p8, p10) in a.y.pixels().zip(b.y.pixels()) {
+                assert!(p10[0] <= 1023);
+                worst = worst.max((i32::from(p8[0]) * 4 - i32::from(p10[0])).abs());
+            }
+            assert!(worst <= 4, "{interp:?}: worst {worst}");
+            // Uncovered corners: limited-range black and neutral chroma at 10 bits.
+            assert_eq!(b.y.get_pixel(0, 0)[0], 64);
+            assert_eq!(b.u.get_pixel(0, 0)[0], 512);
+            assert_eq!(b.luma8().get_pixel(47, 0)[0], a.y.get_pixel(47, 0)[0]);
+        }
     }
 }

@@ -3,9 +3,14 @@
 //! Reading goes through the `y4m` crate. Its header parser multiplies the declared width and
 //! height without overflow checks and allocates the frame buffer before any frame arrives, so
 //! the header line is first read and checked here (at most 1024 bytes, as the crate allows;
-//! width and height positive and their product within the caller's pixel limit; an 8-bit layout
-//! this module supports) and only then handed, with the rest of the stream, to the crate. A
-//! stream that ends inside a frame is reported as truncated (the crate would call it a clean end).
+//! width and height positive and their product within the caller's pixel limit; a layout this
+//! module supports) and only then handed, with the rest of the stream, to the crate. A stream
+//! that ends inside a frame is reported as truncated (the crate would call it a clean end).
+//!
+//! 10- and 12-bit streams (`C420p10`, `C422p10`, `C444p10`, their `p12` kin and `Cmono12`, as
+//! `ffmpeg -strict -1 -f yuv4mpegpipe` writes them) hold two bytes a sample, little-endian,
+//! the value in the low bits; they are read into [`YuvFrame<u16>`] and written back the same
+//! way ([`Y4mReader::read_frame16`], [`Y4mWriter::write_frame16`]).
 //!
 //! Writing puts out the input's own header line, unchanged (so interlacing, aspect, vendor
 //! `X` tags and the colour tag survive and an unmodified stream round-trips byte for byte), or
@@ -18,7 +23,7 @@ use std::sync::Arc;
 
 use image::GrayImage;
 
-use super::{Chroma, VideoFormat, YuvFrame};
+use super::{Chroma, Plane, VideoFormat, VideoFrame, YuvFrame};
 use crate::{Error, Result};
 
 /// The longest header line accepted (the `y4m` crate's own limit).
@@ -108,6 +113,7 @@ pub fn parse_header(line: &[u8], max_pixels: u64) -> Result<VideoFormat> {
     let mut chroma = Chroma::Yuv420;
     let mut full_range = false;
     let mut frame_rate = (25, 1);
+    let mut bit_depth = 8;
     for field in body.split(|&b| b == b' ').filter(|f| !f.is_empty()) {
         let (tag, value) = (field[0], &field[1..]);
         match tag {
@@ -120,16 +126,24 @@ pub fn parse_header(line: &[u8], max_pixels: u64) -> Result<VideoFormat> {
                 frame_rate = (num, den);
             }
             b'C' => {
-                chroma = match value {
-                    b"420" | b"420jpeg" | b"420mpeg2" => Chroma::Yuv420,
-                    b"420paldv" => Chroma::Yuv420CoSited,
-                    b"422" => Chroma::Yuv422,
-                    b"444" => Chroma::Yuv444,
-                    b"mono" => Chroma::Mono,
+                (chroma, bit_depth) = match value {
+                    b"420" | b"420jpeg" | b"420mpeg2" => (Chroma::Yuv420, 8),
+                    b"420paldv" => (Chroma::Yuv420CoSited, 8),
+                    b"422" => (Chroma::Yuv422, 8),
+                    b"444" => (Chroma::Yuv444, 8),
+                    b"mono" => (Chroma::Mono, 8),
+                    b"420p10" => (Chroma::Yuv420, 10),
+                    b"422p10" => (Chroma::Yuv422, 10),
+                    b"444p10" => (Chroma::Yuv444, 10),
+                    b"420p12" => (Chroma::Yuv420, 12),
+                    b"422p12" => (Chroma::Yuv422, 12),
+                    b"444p12" => (Chroma::Yuv444, 12),
+                    b"mono12" => (Chroma::Mono, 12),
                     other => {
                         return Err(video_err(format!(
                             "y4m colour layout C{} is not supported (8-bit 420, 420jpeg, \
-                             420mpeg2, 420paldv, 422, 444 and mono are)",
+                             420mpeg2, 420paldv, 422, 444 and mono; 420p10, 422p10, 444p10, \
+                             420p12, 422p12, 444p12 and mono12 are)",
                             String::from_utf8_lossy(other)
                         )))
                     }
@@ -158,10 +172,12 @@ pub fn parse_header(line: &[u8], max_pixels: u64) -> Result<VideoFormat> {
         chroma,
         full_range,
         frame_rate,
+        bit_depth,
     })
 }
 
-/// Reads 8-bit YUV frames from a y4m stream.
+/// Reads YUV frames from a y4m stream (8-bit with [`Self::read_frame`], 10- and 12-bit with
+/// [`Self::read_frame16`], either with [`Self::read_video_frame`]).
 pub struct Y4mReader<R: Read> {
     decoder: y4m::Decoder<Counting<Chain<Cursor<Vec<u8>>, R>>>,
     format: VideoFormat,
@@ -190,7 +206,7 @@ impl<R: Read> Y4mReader<R> {
             .map_err(|e| video_err(format!("y4m header: {e}")))?;
         if decoder.get_width() != format.width as usize
             || decoder.get_height() != format.height as usize
-            || decoder.get_bytes_per_sample() != 1
+            || decoder.get_bit_depth() != format.bit_depth as usize
         {
             return Err(video_err("y4m header: inconsistent W, H or sample size"));
         }
@@ -213,24 +229,68 @@ impl<R: Read> Y4mReader<R> {
         &self.header
     }
 
-    /// The next frame, `None` at the end of the stream.
+    /// The next 8-bit frame, `None` at the end of the stream.
     ///
     /// # Errors
-    /// [`Error::Video`] for a malformed frame header, a stream that ends inside a frame, or a
-    /// read error.
+    /// [`Error::Video`] for a malformed frame header, a stream that ends inside a frame, a read
+    /// error, or a stream of more than 8 bits (use [`Self::read_frame16`]).
     pub fn read_frame(&mut self) -> Result<Option<YuvFrame>> {
+        if self.format.bit_depth != 8 {
+            return Err(video_err(format!(
+                "a {}-bit stream read as 8-bit (use read_frame16)",
+                self.format.bit_depth
+            )));
+        }
+        self.read_with(|data, w, h| {
+            GrayImage::from_raw(w, h, data.to_vec())
+                .ok_or_else(|| video_err("y4m frame: plane size mismatch"))
+        })
+    }
+
+    /// The next 10- or 12-bit frame (little-endian samples), `None` at the end of the stream.
+    ///
+    /// # Errors
+    /// As [`Self::read_frame`]; an 8-bit stream is an error here.
+    pub fn read_frame16(&mut self) -> Result<Option<YuvFrame<u16>>> {
+        if self.format.bit_depth <= 8 {
+            return Err(video_err("an 8-bit stream read as 16-bit (use read_frame)"));
+        }
+        self.read_with(|data, w, h| {
+            let samples = data
+                .chunks_exact(2)
+                .map(|b| u16::from_le_bytes([b[0], b[1]]))
+                .collect();
+            Plane::from_raw(w, h, samples)
+                .ok_or_else(|| video_err("y4m frame: plane size mismatch"))
+        })
+    }
+
+    /// The next frame at the stream's depth ([`VideoFrame::Yuv`] or [`VideoFrame::Yuv16`]).
+    ///
+    /// # Errors
+    /// As [`Self::read_frame`].
+    pub fn read_video_frame(&mut self) -> Result<Option<VideoFrame>> {
+        Ok(if self.format.bit_depth > 8 {
+            self.read_frame16()?.map(VideoFrame::Yuv16)
+        } else {
+            self.read_frame()?.map(VideoFrame::Yuv)
+        })
+    }
+
+    /// Reads one frame and makes its planes with `plane(bytes, width, height)`.
+    fn read_with<T: super::YuvSample>(
+        &mut self,
+        plane: impl Fn(&[u8], u32, u32) -> Result<Plane<T>>,
+    ) -> Result<Option<YuvFrame<T>>> {
         let before = self.decoder_count();
         match self.decoder.read_frame() {
             Ok(frame) => {
                 let (w, h) = (self.format.width, self.format.height);
                 let (cw, ch) = self.format.chroma.plane_size(w, h);
-                let plane = |data: &[u8], pw: u32, ph: u32| {
-                    GrayImage::from_raw(pw, ph, data.to_vec())
-                        .ok_or_else(|| video_err("y4m frame: plane size mismatch"))
-                };
                 let out = YuvFrame {
                     chroma: self.format.chroma,
                     full_range: self.format.full_range,
+                    bit_depth: self.format.bit_depth,
                     y: plane(frame.get_y_plane(), w, h)?,
                     u: plane(frame.get_u_plane(), cw, ch)?,
                     v: plane(frame.get_v_plane(), cw, ch)?,
@@ -253,7 +313,8 @@ impl<R: Read> Y4mReader<R> {
     }
 }
 
-/// Writes 8-bit YUV frames as a y4m stream.
+/// Writes YUV frames as a y4m stream (8-bit with [`Self::write_frame`], 10- and 12-bit with
+/// [`Self::write_frame16`]).
 pub struct Y4mWriter<W: Write> {
     writer: W,
     format: VideoFormat,
@@ -277,17 +338,32 @@ impl<W: Write> Y4mWriter<W> {
     }
 
     /// A stream for frames of `format`, with a header made by the `y4m` crate (`C420jpeg` for
-    /// 4:2:0, `C420paldv` for co-sited 4:2:0, `XCOLORRANGE=FULL` for full range).
+    /// 4:2:0, `C420paldv` for co-sited 4:2:0, `C420p10` and the like above 8 bits,
+    /// `XCOLORRANGE=FULL` for full range).
     ///
     /// # Errors
-    /// [`Error::Video`] if the header cannot be written.
+    /// [`Error::Video`] if the format has no y4m layout (e.g. 10-bit mono or co-sited 4:2:0)
+    /// or the header cannot be written.
     pub fn new(writer: W, format: &VideoFormat) -> Result<Self> {
-        let colorspace = match format.chroma {
-            Chroma::Mono => y4m::Colorspace::Cmono,
-            Chroma::Yuv420 => y4m::Colorspace::C420jpeg,
-            Chroma::Yuv420CoSited => y4m::Colorspace::C420paldv,
-            Chroma::Yuv422 => y4m::Colorspace::C422,
-            Chroma::Yuv444 => y4m::Colorspace::C444,
+        use y4m::Colorspace as C;
+        let colorspace = match (format.chroma, format.bit_depth) {
+            (Chroma::Mono, 8) => C::Cmono,
+            (Chroma::Yuv420, 8) => C::C420jpeg,
+            (Chroma::Yuv420CoSited, 8) => C::C420paldv,
+            (Chroma::Yuv422, 8) => C::C422,
+            (Chroma::Yuv444, 8) => C::C444,
+            (Chroma::Yuv420, 10) => C::C420p10,
+            (Chroma::Yuv422, 10) => C::C422p10,
+            (Chroma::Yuv444, 10) => C::C444p10,
+            (Chroma::Yuv420, 12) => C::C420p12,
+            (Chroma::Yuv422, 12) => C::C422p12,
+            (Chroma::Yuv444, 12) => C::C444p12,
+            (Chroma::Mono, 12) => C::Cmono12,
+            (chroma, depth) => {
+                return Err(video_err(format!(
+                    "no y4m layout for {depth}-bit {chroma:?}"
+                )))
+            }
         };
         let (num, den) = format.frame_rate;
         let mut builder = y4m::EncoderBuilder::new(
@@ -313,14 +389,51 @@ impl<W: Write> Y4mWriter<W> {
         &self.format
     }
 
-    /// Writes one frame (its `FRAME` parameters kept).
+    /// Writes one 8-bit frame (its `FRAME` parameters kept).
     ///
     /// # Errors
-    /// [`Error::Video`] if the frame's layout or size differs from the stream's, or writing
-    /// fails.
+    /// [`Error::Video`] if the frame's layout, size or depth differs from the stream's, or
+    /// writing fails.
     pub fn write_frame(&mut self, frame: &YuvFrame) -> Result<()> {
+        self.check(frame)?;
+        self.write_with(frame, |w, plane: &GrayImage| w.write_all(plane.as_raw()))
+    }
+
+    /// Writes one 10- or 12-bit frame (little-endian samples, `FRAME` parameters kept).
+    ///
+    /// # Errors
+    /// As [`Self::write_frame`].
+    pub fn write_frame16(&mut self, frame: &YuvFrame<u16>) -> Result<()> {
+        self.check(frame)?;
+        let mut bytes = Vec::new();
+        self.write_with(frame, |w, plane: &Plane<u16>| {
+            bytes.clear();
+            bytes.extend(plane.as_raw().iter().flat_map(|v| v.to_le_bytes()));
+            w.write_all(&bytes)
+        })
+    }
+
+    /// Writes a frame of either depth.
+    ///
+    /// # Errors
+    /// As [`Self::write_frame`]; an image frame is an error (convert it first).
+    pub fn write_video_frame(&mut self, frame: &VideoFrame) -> Result<()> {
+        match frame {
+            VideoFrame::Yuv(f) => self.write_frame(f),
+            VideoFrame::Yuv16(f) => self.write_frame16(f),
+            VideoFrame::Image(_) => Err(video_err("an image frame in a y4m stream")),
+        }
+    }
+
+    fn check<T: super::YuvSample>(&self, frame: &YuvFrame<T>) -> Result<()> {
         let f = &self.format;
         let (cw, ch) = f.chroma.plane_size(f.width, f.height);
+        if frame.bit_depth != f.bit_depth {
+            return Err(video_err(format!(
+                "a {}-bit frame in a {}-bit stream",
+                frame.bit_depth, f.bit_depth
+            )));
+        }
         if frame.chroma != f.chroma
             || frame.y.dimensions() != (f.width, f.height)
             || frame.u.dimensions() != (cw, ch)
@@ -336,6 +449,14 @@ impl<W: Write> Y4mWriter<W> {
                 f.chroma
             )));
         }
+        Ok(())
+    }
+
+    fn write_with<T: super::YuvSample>(
+        &mut self,
+        frame: &YuvFrame<T>,
+        mut plane: impl FnMut(&mut W, &Plane<T>) -> std::io::Result<()>,
+    ) -> Result<()> {
         let w = &mut self.writer;
         let result = (|| {
             w.write_all(b"FRAME")?;
@@ -344,9 +465,9 @@ impl<W: Write> Y4mWriter<W> {
                 w.write_all(p)?;
             }
             w.write_all(b"\n")?;
-            w.write_all(frame.y.as_raw())?;
-            w.write_all(frame.u.as_raw())?;
-            w.write_all(frame.v.as_raw())
+            plane(w, &frame.y)?;
+            plane(w, &frame.u)?;
+            plane(w, &frame.v)
         })();
         result.map_err(|e| video_err(format!("writing a y4m frame: {e}")))
     }
@@ -428,7 +549,7 @@ mod tests {
             b"RIFF0000WAVEfmt \n",
             b"YUV4MPEG2 W0 H3 C420\n",
             b"YUV4MPEG2 W99999999999999999999 H3\n",
-            b"YUV4MPEG2 W5 H3 C420p10\n",
+            b"YUV4MPEG2 W5 H3 C420p16\n",
             b"YUV4MPEG2 W5 H3 C411\n",
             b"YUV4MPEG2 W5 H3 Fx:1\n",
         ];
@@ -471,6 +592,7 @@ mod tests {
                 chroma,
                 full_range: true,
                 frame_rate: (25, 1),
+                bit_depth: 8,
             };
             let w = Y4mWriter::new(Vec::new(), &format).expect("header");
             let bytes = w.finish().expect("flush");
@@ -491,5 +613,48 @@ mod tests {
         assert!(w.write_frame(&f).is_ok());
         f.y = GrayImage::new(4, 3);
         assert!(w.write_frame(&f).is_err());
+    }
+
+    #[test]
+    fn ten_bit_streams_round_trip_at_their_depth() {
+        // FFmpeg's header for yuv420p10le; samples little-endian in the low 10 bits.
+        let header = b"YUV4MPEG2 W5 H3 F25:1 Ip A1:1 C420p10 XYSCSS=420P10 XCOLORRANGE=LIMITED\n";
+        let samples = 5 * 3 + 2 * 3 * 2;
+        let mut input = header.to_vec();
+        for f in 0..2u16 {
+            input.extend_from_slice(b"FRAME\n");
+            input.extend(
+                (0..samples as u16).flat_map(|i| ((i * 37 + f * 101) % 1024).to_le_bytes()),
+            );
+        }
+        let mut r = Y4mReader::new(input.as_slice(), 1000).expect("10-bit header");
+        assert_eq!(r.format().bit_depth, 10);
+        assert_eq!(r.format().frame_bytes(), 2 * samples as u64);
+        assert!(r.read_frame().is_err(), "8-bit read of a 10-bit stream");
+        let mut r = Y4mReader::new(input.as_slice(), 1000).expect("10-bit header");
+        let mut w = Y4mWriter::with_header(Vec::new(), r.header()).expect("header");
+        let mut frames = 0;
+        while let Some(f) = r.read_video_frame().expect("frame") {
+            let VideoFrame::Yuv16(f) = f else {
+                panic!("a 10-bit frame reads as Yuv16")
+            };
+            assert_eq!(f.bit_depth, 10);
+            assert_eq!(f.y.get_pixel(1, 0)[0], 37 + frames * 101);
+            assert_eq!(f.u.dimensions(), (3, 2));
+            // An 8-bit frame does not go into a 10-bit stream.
+            assert!(w.write_frame(&f.to_8bit()).is_err());
+            w.write_frame16(&f).expect("write");
+            frames += 1;
+        }
+        assert_eq!(frames, 2);
+        assert_eq!(w.finish().expect("flush"), input);
+        // Made headers name the depth.
+        let format = parse_header(header, 100).expect("parses");
+        let made = Y4mWriter::new(Vec::new(), &format)
+            .expect("10-bit header")
+            .finish()
+            .expect("flush");
+        assert!(String::from_utf8_lossy(&made).contains("C420p10"));
+        assert_eq!(parse_header(&made, 100).expect("parses").bit_depth, 10);
     }
 }

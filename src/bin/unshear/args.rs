@@ -23,8 +23,9 @@ pub enum Command {
     Estimate(EstimateArgs),
     /// Synthesise rolling-shutter shear: x' = x + k (y - pivot).
     Distort(DistortArgs),
-    /// Correct a video: y4m file or pipe (`-`), or a folder of numbered frames.
-    Video(crate::video::VideoArgs),
+    /// Correct a video: a video file (through ffmpeg), a y4m file or pipe (`-`), or a folder of
+    /// numbered frames.
+    Video(VideoArgs),
     /// Train the eye filters from an annotated data set (Caltech Web Faces layout).
     Train(TrainArgs),
     /// Measure accuracy on annotated faces sheared synthetically.
@@ -471,6 +472,118 @@ pub struct EvalRecognitionArgs {
     pub grid: usize,
     #[command(flatten)]
     pub model: ModelArgs,
+}
+
+/// `unshear video`.
+#[derive(Debug, Args)]
+#[command(next_help_heading = "Video")]
+pub struct VideoArgs {
+    /// Input: a video file (MP4, MOV, MKV, WebM... through ffmpeg), a .y4m file, `-` for a
+    /// y4m stream on stdin, or a folder of numbered frames.
+    #[arg(value_name = "IN", help_heading = "Arguments")]
+    pub input: PathBuf,
+    /// Output: a video file (.mp4, .mov, .mkv, .webm...: encoded by ffmpeg, with the input's
+    /// sound, subtitles, rotation and colour tags), `-` for y4m on stdout, a .y4m file, or a
+    /// folder for numbered frames [default: none, analysis only].
+    #[arg(short = 'o', long = "output", value_name = "OUT")]
+    pub output: Option<PathBuf>,
+    /// The ffmpeg program for video files (ffprobe is looked for beside it) [default: ffmpeg
+    /// on PATH].
+    #[arg(long, value_name = "PATH")]
+    pub ffmpeg: Option<PathBuf>,
+    /// Video encoder of a video-file output, as ffmpeg names it (libx264, libx265,
+    /// libvpx-vp9, libsvtav1...) [default: the input's codec where possible, else libx264,
+    /// libx265 above 8 bits, libvpx-vp9 for .webm].
+    #[arg(long, value_name = "ENCODER")]
+    pub codec: Option<String>,
+    /// Constant quality of a video-file output (lower is better) [default: 18 for libx264, 20
+    /// for libx265, 30 for VP9 and AV1].
+    #[arg(long, value_name = "N")]
+    pub crf: Option<f64>,
+    /// Speed preset of the video encoder, passed to ffmpeg as -preset (libx264 and libx265:
+    /// ultrafast ... veryslow; libsvtav1: 0-13) [default: the encoder's, medium for x264 and
+    /// x265].
+    #[arg(long, value_name = "NAME")]
+    pub preset: Option<String>,
+    /// Write one JSON line per frame: `--json` to stdout, `--json=FILE` to a file.
+    #[arg(
+        long,
+        value_name = "FILE",
+        num_args = 0..=1,
+        require_equals = true,
+        default_missing_value = "-"
+    )]
+    pub json: Option<PathBuf>,
+    /// Do not correct: frames are written unchanged (analysis only).
+    #[arg(long)]
+    pub no_correct: bool,
+    /// Correct each frame by the filtered k or by its own raw estimate (the filtered k on
+    /// frames without one).
+    #[arg(long, value_enum, default_value_t = KSourceArg::Filtered)]
+    pub k_source: KSourceArg,
+    /// Row resampling.
+    #[arg(long, value_enum, default_value_t = InterpArg::Linear)]
+    pub interp: InterpArg,
+    /// Full face detection every N frames (faces are tracked in between).
+    #[arg(long, value_name = "N", default_value_t = 30)]
+    pub redetect: u64,
+    /// While no face is tracked, full detection every N frames.
+    #[arg(long, value_name = "N", default_value_t = 5)]
+    pub lost_interval: u64,
+    /// Full detection on the frame shrunk to at most this width (0: full size; smallest face
+    /// found: 20 * width / PX pixels).
+    #[arg(long, value_name = "PX", default_value_t = 640)]
+    pub detect_width: u32,
+    /// Smooth k over this many later frames (a fixed-lag smoother): each frame is corrected
+    /// once N more frames have been estimated, so output lags input by N frames (0: the causal
+    /// filter, no delay).
+    #[arg(long, value_name = "N", default_value_t = unshear::video::temporal::DEFAULT_SMOOTHING_LAG)]
+    pub smoothing_lag: usize,
+    /// Without a face, hold the filtered k for this many seconds...
+    #[arg(long, value_name = "SECONDS", default_value_t = 0.5)]
+    pub hold: f64,
+    /// ...then let it decay to 0 with this time constant.
+    #[arg(long, value_name = "SECONDS", default_value_t = 1.0)]
+    pub decay: f64,
+    /// Frame rate of a frame folder (y4m streams carry their own).
+    #[arg(long, value_name = "FPS", default_value_t = 25.0)]
+    pub fps: f64,
+    /// Chroma layout of y4m output made from a frame folder.
+    #[arg(long, value_enum, default_value_t = ChromaArg::C420)]
+    pub chroma: ChromaArg,
+    /// Image format of frames written to a folder (its extension).
+    #[arg(long, value_name = "EXT", default_value = "png")]
+    pub frame_format: String,
+    /// Replace existing output files (inputs are never overwritten).
+    #[arg(long)]
+    pub force: bool,
+    #[command(flatten)]
+    pub model: ModelArgs,
+}
+
+/// `--k-source`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum KSourceArg {
+    /// The temporally filtered k.
+    Filtered,
+    /// Each frame's own estimate.
+    Raw,
+}
+
+/// `--chroma`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ChromaArg {
+    /// 4:2:0 (`C420jpeg`).
+    #[value(name = "420")]
+    C420,
+    /// 4:2:2.
+    #[value(name = "422")]
+    C422,
+    /// 4:4:4.
+    #[value(name = "444")]
+    C444,
+    /// Grey only.
+    Mono,
 }
 
 /// `--filter-type`.

@@ -5,7 +5,9 @@
 //! no temporary file remains), their results are printed, and the process exits with 130. A
 //! second signal, or the first one in a command that is not a batch, stops at once: the
 //! temporary files of writes still in progress are removed first (see
-//! [`unshear::imageio::abandon_writes`]), then the process exits with 130.
+//! [`unshear::imageio::abandon_writes`]; `unshear video` first ends its `ffmpeg` children and
+//! removes its temporary video file, [`crate::ffmpeg::abandon`]), then the process exits with
+//! 130.
 //!
 //! SIGKILL cannot be caught: a killed run can leave `.unshear-*.tmp` files beside the outputs,
 //! never a partial output (outputs appear only by an atomic rename).
@@ -28,6 +30,7 @@ pub fn install(graceful: bool) {
             );
             return;
         }
+        crate::ffmpeg::abandon();
         unshear::imageio::abandon_writes();
         eprintln!("unshear: interrupted");
         std::process::exit(i32::from(EXIT_INTERRUPTED));

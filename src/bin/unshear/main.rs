@@ -6,6 +6,7 @@
 
 mod args;
 mod batch;
+mod ffmpeg;
 mod interrupt;
 mod models;
 mod report;

@@ -1,25 +1,33 @@
-//! `unshear video`: y4m files and pipes, frame folders; per-frame JSON; progress on stderr.
+//! `unshear video`: y4m files and pipes, frame folders, and any container FFmpeg reads and
+//! writes (through the `ffmpeg` program); per-frame JSON; progress on stderr.
 //!
-//! `IN` is a `.y4m` file, `-` (a y4m stream on stdin) or a folder of numbered frames. `OUT` is
-//! `-` (y4m on stdout), a path ending in `.y4m`, or otherwise a folder that receives
-//! `000000.png`, `000001.png`, ... (`--frame-format`). Without `-o` nothing is written (analysis).
+//! `IN` is a y4m file (told by its first bytes, whatever its name), `-` (a y4m stream on stdin),
+//! a folder of numbered frames, or any other file, which `ffmpeg` decodes. `OUT` is `-` (y4m on
+//! stdout), a path ending in `.y4m`, a path with a video container's extension (`.mp4`,
+//! `.mov`, `.mkv`, `.webm`...: `ffmpeg` encodes it, with the input's sound, subtitles, rotation
+//! and colour tags), or otherwise a folder that receives `000000.png`, `000001.png`, ...
+//! (`--frame-format`). Without `-o` nothing is written (analysis). Files are written under a
+//! temporary name beside the output and renamed when complete.
 
 use std::fs::File;
-use std::io::{BufReader, BufWriter, IsTerminal, Write};
+use std::io::{BufReader, BufWriter, IsTerminal, Read, Write};
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
-use anyhow::{Context, Result};
-use clap::{Args, ValueEnum};
+use anyhow::{bail, Context, Result};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressState, ProgressStyle};
 use serde::Serialize;
 
-use crate::args::{InterpArg, ModelArgs};
+use crate::args::{ChromaArg, KSourceArg, VideoArgs};
+use crate::ffmpeg::{PendingDecoder, PendingEncoder, TempOutput, Tools};
 use crate::models::load_models;
 use crate::report::{face, r4, JsonFace};
-use crate::usage_error;
+use crate::{interrupt, usage_error};
 use unshear::imageio::WriteOptions;
+use unshear::video::ffmpeg::{
+    decode_args, y4m_target, Capabilities, EncodePlan, EncodeSettings, Probe, StreamAction, Timing,
+};
 use unshear::video::frames::{list_frames, FrameFolderReader, FrameFolderWriter};
-use unshear::video::temporal::{FilterParams, DEFAULT_SMOOTHING_LAG};
+use unshear::video::temporal::FilterParams;
 use unshear::video::tracker::TrackerParams;
 use unshear::video::y4m::{Y4mReader, Y4mWriter};
 use unshear::video::{
@@ -27,99 +35,8 @@ use unshear::video::{
     VideoFormat, VideoProcessor,
 };
 
-/// `unshear video`.
-#[derive(Debug, Args)]
-pub struct VideoArgs {
-    /// Input: a .y4m file, `-` for a y4m stream on stdin, or a folder of numbered frames.
-    #[arg(value_name = "IN")]
-    pub input: PathBuf,
-    /// Output: `-` for y4m on stdout, a .y4m file, or a folder for numbered frames
-    /// [default: none, analysis only].
-    #[arg(short = 'o', long = "output", value_name = "OUT")]
-    pub output: Option<PathBuf>,
-    /// Write one JSON line per frame: `--json` to stdout, `--json=FILE` to a file.
-    #[arg(
-        long,
-        value_name = "FILE",
-        num_args = 0..=1,
-        require_equals = true,
-        default_missing_value = "-"
-    )]
-    pub json: Option<PathBuf>,
-    /// Do not correct: frames are written unchanged (analysis only).
-    #[arg(long)]
-    pub no_correct: bool,
-    /// Correct each frame by the filtered k or by its own raw estimate (the filtered k on
-    /// frames without one).
-    #[arg(long, value_enum, default_value_t = KSourceArg::Filtered)]
-    pub k_source: KSourceArg,
-    /// Row resampling.
-    #[arg(long, value_enum, default_value_t = InterpArg::Linear)]
-    pub interp: InterpArg,
-    /// Full face detection every N frames (faces are tracked in between).
-    #[arg(long, value_name = "N", default_value_t = 30)]
-    pub redetect: u64,
-    /// While no face is tracked, full detection every N frames.
-    #[arg(long, value_name = "N", default_value_t = 5)]
-    pub lost_interval: u64,
-    /// Full detection on the frame shrunk to at most this width (0: full size; smallest face
-    /// found: 20 * width / PX pixels).
-    #[arg(long, value_name = "PX", default_value_t = 640)]
-    pub detect_width: u32,
-    /// Smooth k over this many later frames (a fixed-lag smoother): each frame is corrected
-    /// once N more frames have been estimated, so output lags input by N frames (0: the causal
-    /// filter, no delay).
-    #[arg(long, value_name = "N", default_value_t = DEFAULT_SMOOTHING_LAG)]
-    pub smoothing_lag: usize,
-    /// Without a face, hold the filtered k for this many seconds...
-    #[arg(long, value_name = "SECONDS", default_value_t = 0.5)]
-    pub hold: f64,
-    /// ...then let it decay to 0 with this time constant.
-    #[arg(long, value_name = "SECONDS", default_value_t = 1.0)]
-    pub decay: f64,
-    /// Frame rate of a frame folder (y4m streams carry their own).
-    #[arg(long, value_name = "FPS", default_value_t = 25.0)]
-    pub fps: f64,
-    /// Chroma layout of y4m output made from a frame folder.
-    #[arg(long, value_enum, default_value_t = ChromaArg::C420)]
-    pub chroma: ChromaArg,
-    /// Image format of frames written to a folder (its extension).
-    #[arg(long, value_name = "EXT", default_value = "png")]
-    pub frame_format: String,
-    /// Replace existing output files (inputs are never overwritten).
-    #[arg(long)]
-    pub force: bool,
-    #[command(flatten)]
-    pub model: ModelArgs,
-}
-
 /// Largest `--smoothing-lag`: the processor holds that many decoded frames in memory.
 const MAX_SMOOTHING_LAG: usize = 250;
-
-/// `--k-source`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum KSourceArg {
-    /// The temporally filtered k.
-    Filtered,
-    /// Each frame's own estimate.
-    Raw,
-}
-
-/// `--chroma`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum ChromaArg {
-    /// 4:2:0 (`C420jpeg`).
-    #[value(name = "420")]
-    C420,
-    /// 4:2:2.
-    #[value(name = "422")]
-    C422,
-    /// 4:4:4.
-    #[value(name = "444")]
-    C444,
-    /// Grey only.
-    Mono,
-}
 
 /// One frame, as printed by `--json`.
 #[derive(Debug, Serialize)]
@@ -151,31 +68,217 @@ fn is_y4m_path(p: &Path) -> bool {
         .is_some_and(|e| e.eq_ignore_ascii_case("y4m"))
 }
 
-/// Where frames come from, and what an output stream's header should be.
-enum Input {
-    Y4m(Box<dyn FrameSource>, Vec<u8>, VideoFormat),
-    Frames(FrameFolderReader),
+/// Video container extensions written through ffmpeg (other paths are frame folders).
+const CONTAINER_EXTENSIONS: &[&str] = &[
+    "mp4", "m4v", "mov", "qt", "mkv", "webm", "avi", "ts", "m2ts", "mts", "mxf", "flv", "ogv",
+    "3gp", "nut",
+];
+
+fn is_container_path(p: &Path) -> bool {
+    !p.is_dir()
+        && p.extension()
+            .and_then(|e| e.to_str())
+            .is_some_and(|e| CONTAINER_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
 }
 
-fn open_input(a: &VideoArgs) -> Result<Input> {
+/// Whether the file starts like a y4m stream.
+fn starts_as_y4m(p: &Path) -> Result<bool> {
+    let mut magic = [0u8; 10];
+    let mut f = File::open(p).with_context(|| format!("opening {}", p.display()))?;
+    let mut n = 0;
+    while n < magic.len() {
+        match f.read(&mut magic[n..]) {
+            Ok(0) => break,
+            Ok(k) => n += k,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e).with_context(|| format!("reading {}", p.display())),
+        }
+    }
+    Ok(&magic[..n] == b"YUV4MPEG2 ")
+}
+
+/// The frames of a y4m file, from its size (for the progress bar).
+fn y4m_file_frames(p: &Path, header: &[u8], format: &VideoFormat) -> Option<u64> {
+    let size = p.metadata().ok()?.len();
+    // Each frame: "FRAME\n" (parameters are rare) and its samples.
+    let per_frame = format.frame_bytes() + 6;
+    Some(size.saturating_sub(header.len() as u64) / per_frame)
+}
+
+/// `ffmpeg`, `ffprobe` and what they can do, found when a video file needs them.
+struct Ffmpeg {
+    tools: Tools,
+    caps: Capabilities,
+}
+
+/// What the preparation hands back: ffmpeg and what it can do; for a video-file input, its
+/// probe and its decoder, already started; for a video-file output, its encoder, already
+/// started when its bit depth is known by then (a video-file input).
+struct Prepared {
+    ff: Ffmpeg,
+    input: Option<(Probe, PendingDecoder)>,
+    job: Option<EncodeJob>,
+}
+
+impl Ffmpeg {
+    /// Finds the programs (`why`: what needs them, for the error without them), asks what
+    /// `ffmpeg` can do and probes a video-file input (side by side), then starts its decoder
+    /// and the encoder of a video-file output `out`, as the shell starts both ends of a pipe.
+    fn prepare(
+        a: &VideoArgs,
+        why: &str,
+        container_in: bool,
+        out: Option<&Path>,
+    ) -> Result<Prepared> {
+        let tools = Tools::find(a.ffmpeg.as_deref(), why)?;
+        let (caps, probe) = std::thread::scope(|scope| {
+            let probe = container_in.then(|| scope.spawn(|| tools.probe(&a.input)));
+            let caps = tools.capabilities();
+            let probe = probe.map(|h| {
+                h.join()
+                    .unwrap_or_else(|_| Err(anyhow::anyhow!("ffprobe panicked")))
+            });
+            (caps, probe)
+        });
+        let ff = Self { tools, caps: caps? };
+        let Some(probe) = probe.transpose()? else {
+            return Ok(Prepared {
+                ff,
+                input: None,
+                job: None,
+            });
+        };
+        let target = y4m_target(probe.video.pix_fmt.as_deref());
+        if target.converts {
+            eprintln!(
+                "unshear video: note: {} is {}, processed as {} (the nearest layout unshear \
+                 reads)",
+                a.input.display(),
+                probe.video.pix_fmt.as_deref().unwrap_or("?"),
+                target.pix_fmt
+            );
+        }
+        let args = decode_args(&a.input, &probe, &target, &ff.caps);
+        // Decoded at a constant rate, the frame count may differ from the index's.
+        let indexed = match probe.timing() {
+            Timing::Constant((n, d)) => {
+                let avg = probe
+                    .video
+                    .avg_frame_rate
+                    .map_or(0.0, |(an, ad)| f64::from(an) / f64::from(ad));
+                eprintln!(
+                    "unshear video: note: {} has a variable frame rate (average {avg:.2} fps): \
+                     it is decoded at a constant {:.2} fps, frames repeated where the rate \
+                     dropped, so that picture and sound stay in step",
+                    a.input.display(),
+                    f64::from(n) / f64::from(d)
+                );
+                None
+            }
+            _ => probe.video.frames,
+        };
+        let decoder = PendingDecoder::spawn(&ff.tools, &args, &a.input, indexed)?;
+        let job = match out {
+            Some(o) => Some(EncodeJob::start(
+                a,
+                &ff,
+                o,
+                std::slice::from_ref(&a.input),
+                target.bit_depth,
+                Some((&a.input, &probe)),
+            )?),
+            None => None,
+        };
+        Ok(Prepared {
+            ff,
+            input: Some((probe, decoder)),
+            job,
+        })
+    }
+}
+
+/// Where frames come from.
+struct Opened {
+    source: Box<dyn FrameSource>,
+    /// The y4m header of a y4m or decoded input (the output repeats it).
+    header: Option<Vec<u8>>,
+    /// The frames' format (made from the first image for a folder).
+    format: VideoFormat,
+    /// Files that must not be overwritten.
+    protected: Vec<PathBuf>,
+    /// Frames to expect, when known.
+    expected: Option<u64>,
+    /// A container input: its path and probe.
+    container: Option<(PathBuf, Probe)>,
+}
+
+/// The input's frames; a video file's probe and decoder from [`Ffmpeg::prepare`].
+fn open_input(a: &VideoArgs, decoder: Option<(Probe, PendingDecoder)>) -> Result<Opened> {
     let max = a.model.max_pixels;
+    let y4m = |reader: Y4mReader<BufReader<Box<dyn Read + Send>>>,
+               protected: Vec<PathBuf>,
+               expected: Option<u64>| Opened {
+        header: Some(reader.header().to_vec()),
+        format: reader.format().clone(),
+        source: Box::new(reader),
+        protected,
+        expected,
+        container: None,
+    };
     if is_stdio(&a.input) {
-        let reader = Y4mReader::new(BufReader::with_capacity(1 << 20, std::io::stdin()), max)
+        let stdin: Box<dyn Read + Send> = Box::new(std::io::stdin());
+        let reader = Y4mReader::new(BufReader::with_capacity(1 << 20, stdin), max)
             .context("reading y4m from stdin")?;
-        let (header, format) = (reader.header().to_vec(), reader.format().clone());
-        return Ok(Input::Y4m(Box::new(reader), header, format));
+        return Ok(y4m(reader, Vec::new(), None));
     }
     if a.input.is_dir() {
         let paths = list_frames(&a.input)?;
         let reader = FrameFolderReader::new(paths, max)
             .with_context(|| format!("reading the first frame in {}", a.input.display()))?;
-        return Ok(Input::Frames(reader));
+        let (width, height) = reader.dimensions();
+        return Ok(Opened {
+            header: None,
+            format: VideoFormat {
+                width,
+                height,
+                chroma: match a.chroma {
+                    ChromaArg::C420 => Chroma::Yuv420,
+                    ChromaArg::C422 => Chroma::Yuv422,
+                    ChromaArg::C444 => Chroma::Yuv444,
+                    ChromaArg::Mono => Chroma::Mono,
+                },
+                full_range: false,
+                frame_rate: frame_rate_fraction(a.fps),
+                bit_depth: 8,
+            },
+            protected: reader.paths().to_vec(),
+            expected: Some(reader.paths().len() as u64),
+            source: Box::new(reader),
+            container: None,
+        });
     }
-    let file = File::open(&a.input).with_context(|| format!("opening {}", a.input.display()))?;
-    let reader = Y4mReader::new(BufReader::with_capacity(1 << 20, file), max)
-        .with_context(|| format!("reading {}", a.input.display()))?;
-    let (header, format) = (reader.header().to_vec(), reader.format().clone());
-    Ok(Input::Y4m(Box::new(reader), header, format))
+    if starts_as_y4m(&a.input)? {
+        let file =
+            File::open(&a.input).with_context(|| format!("opening {}", a.input.display()))?;
+        let file: Box<dyn Read + Send> = Box::new(file);
+        let reader = Y4mReader::new(BufReader::with_capacity(1 << 20, file), max)
+            .with_context(|| format!("reading {}", a.input.display()))?;
+        let expected = y4m_file_frames(&a.input, reader.header(), reader.format());
+        return Ok(y4m(reader, vec![a.input.clone()], expected));
+    }
+    // Anything else is a video file for ffmpeg.
+    let Some((probe, decoder)) = decoder else {
+        bail!("{}: ffmpeg was not set up for it", a.input.display());
+    };
+    let decoder = decoder.open(max)?;
+    Ok(Opened {
+        header: Some(decoder.header().to_vec()),
+        format: decoder.format().clone(),
+        source: Box::new(decoder),
+        protected: vec![a.input.clone()],
+        expected: probe.expected_frames(),
+        container: Some((a.input.clone(), probe)),
+    })
 }
 
 /// A y4m writer for the input: its own header for a y4m input, a made one for frames.
@@ -211,12 +314,53 @@ pub fn video(a: VideoArgs) -> Result<()> {
             "--smoothing-lag must be at most {MAX_SMOOTHING_LAG} frames (frames are held in memory)"
         ));
     }
-    let unshear = load_models(&a.model, unshear::Config::video())?;
-    let input = open_input(&a)?;
-    let fps = match &input {
-        Input::Y4m(_, _, f) => f.fps(),
-        Input::Frames(_) => a.fps,
+    let output = match a.output.as_deref() {
+        None => Output::None,
+        Some(o) if is_stdio(o) => Output::Stdout,
+        Some(o) if is_y4m_path(o) => Output::Y4mFile(o.to_path_buf()),
+        Some(o) if is_container_path(o) => Output::Container(o.to_path_buf()),
+        Some(o) => Output::Folder(o.to_path_buf()),
     };
+    // A video file in or out needs ffmpeg: found, asked what it can do and the input probed
+    // while the models load (each start of ffmpeg or ffprobe takes a good part of a second on
+    // a busy machine), and before any frame is processed.
+    let container_in = !is_stdio(&a.input) && !a.input.is_dir() && !starts_as_y4m(&a.input)?;
+    let why = match &output {
+        _ if container_in => Some(format!("reading {} (not a y4m file)", a.input.display())),
+        Output::Container(o) => Some(format!("writing {}", o.display())),
+        _ => None,
+    };
+    let container_out = match &output {
+        Output::Container(o) => Some(o.as_path()),
+        _ => None,
+    };
+    let (models, prepared) = std::thread::scope(|scope| {
+        let prepared = why.map(|why| {
+            let a = &a;
+            scope.spawn(move || Ffmpeg::prepare(a, &why, container_in, container_out))
+        });
+        let models = load_models(&a.model, unshear::Config::video());
+        let prepared = prepared.map(|h| {
+            h.join()
+                .unwrap_or_else(|_| Err(anyhow::anyhow!("preparing ffmpeg panicked")))
+        });
+        (models, prepared)
+    });
+    let unshear = models?;
+    let (ffmpeg, decoder, mut job) = match prepared.transpose()? {
+        Some(p) => (Some(p.ff), p.input, p.job),
+        None => (None, None, None),
+    };
+    let input = open_input(&a, decoder)?;
+    let Opened {
+        mut source,
+        header,
+        format,
+        protected,
+        expected,
+        container,
+    } = input;
+    let fps = format.fps();
     let options = ProcessOptions {
         tracker: TrackerParams {
             redetect_interval: a.redetect,
@@ -235,32 +379,6 @@ pub fn video(a: VideoArgs) -> Result<()> {
         network_budget: unshear.config().network_budget,
     };
     let mut processor = VideoProcessor::new(&unshear, options);
-    let (mut source, header, protected, made): (Box<dyn FrameSource>, _, _, _) = match input {
-        Input::Y4m(s, h, f) => {
-            let protected = (!is_stdio(&a.input))
-                .then(|| a.input.clone())
-                .into_iter()
-                .collect::<Vec<_>>();
-            (s, Some(h), protected, f)
-        }
-        Input::Frames(r) => {
-            let (width, height) = r.dimensions();
-            let made = VideoFormat {
-                width,
-                height,
-                chroma: match a.chroma {
-                    ChromaArg::C420 => Chroma::Yuv420,
-                    ChromaArg::C422 => Chroma::Yuv422,
-                    ChromaArg::C444 => Chroma::Yuv444,
-                    ChromaArg::Mono => Chroma::Mono,
-                },
-                full_range: false,
-                frame_rate: frame_rate_fraction(a.fps),
-            };
-            let protected = r.paths().to_vec();
-            (Box::new(r) as Box<dyn FrameSource>, None, protected, made)
-        }
-    };
     let write_options = WriteOptions {
         overwrite: a.force,
         protected: protected.clone(),
@@ -284,7 +402,8 @@ pub fn video(a: VideoArgs) -> Result<()> {
         }
     };
     let mut json_error: Option<std::io::Error> = None;
-    let mut progress = Progress::new();
+    let mut progress = Progress::new(expected);
+    let mut frames_with_faces = 0u64;
     let mut on_frame = |r: &FrameResult| {
         if let Some(out) = json_out.as_mut() {
             if json_error.is_none() {
@@ -293,14 +412,18 @@ pub fn video(a: VideoArgs) -> Result<()> {
                 }
             }
         }
+        if !r.faces.is_empty() {
+            frames_with_faces += 1;
+        }
         progress.frame();
     };
 
-    let stats: RunStats = match a.output.as_deref() {
-        None => run(source.as_mut(), None, &mut processor, &mut on_frame)?,
-        Some(o) if is_stdio(o) => {
+    let mut written = None;
+    let stats: RunStats = match &output {
+        Output::None => run(source.as_mut(), None, &mut processor, &mut on_frame)?,
+        Output::Stdout => {
             let w = BufWriter::with_capacity(1 << 20, std::io::stdout());
-            let mut sink = y4m_sink(w, header.as_deref(), &made)?;
+            let mut sink = y4m_sink(w, header.as_deref(), &format)?;
             run(
                 source.as_mut(),
                 Some(&mut sink),
@@ -308,10 +431,10 @@ pub fn video(a: VideoArgs) -> Result<()> {
                 &mut on_frame,
             )?
         }
-        Some(o) if is_y4m_path(o) => {
+        Output::Y4mFile(o) => {
             let mut stats = None;
             unshear::imageio::write_atomic(o, &write_options, |w| {
-                let mut sink = y4m_sink(w, header.as_deref(), &made)?;
+                let mut sink = y4m_sink(w, header.as_deref(), &format)?;
                 stats = Some(run(
                     source.as_mut(),
                     Some(&mut sink as &mut dyn FrameSink),
@@ -323,7 +446,7 @@ pub fn video(a: VideoArgs) -> Result<()> {
             .with_context(|| format!("writing {}", o.display()))?;
             stats.context("no run statistics")?
         }
-        Some(dir) => {
+        Output::Folder(dir) => {
             let mut sink = FrameFolderWriter::new(dir, &a.frame_format, write_options.clone())?;
             run(
                 source.as_mut(),
@@ -332,6 +455,25 @@ pub fn video(a: VideoArgs) -> Result<()> {
                 &mut on_frame,
             )
             .with_context(|| format!("writing frames into {}", dir.display()))?
+        }
+        Output::Container(o) => {
+            let ff = ffmpeg.as_ref().context("ffmpeg was not set up")?;
+            let job = match job.take() {
+                Some(job) => job,
+                None => EncodeJob::start(
+                    &a,
+                    ff,
+                    o,
+                    &protected,
+                    format.bit_depth,
+                    container.as_ref().map(|(p, probe)| (p.as_path(), probe)),
+                )?,
+            };
+            let (stats, plan) = job.finish(&a, ff, header.as_deref(), &format, |sink| {
+                run(source.as_mut(), Some(sink), &mut processor, &mut on_frame)
+            })?;
+            written = Some((o.clone(), plan));
+            stats
         }
     };
     progress.finish();
@@ -347,15 +489,208 @@ pub fn video(a: VideoArgs) -> Result<()> {
     }
     let fps = stats.frames as f64 / stats.seconds.max(1e-9);
     eprintln!(
-        "unshear video: {} frames in {:.2} s ({fps:.1} fps); {} full detections, {} tracked \
-         searches, {} estimates rejected by the filter",
+        "unshear video: {} frames in {:.2} s ({fps:.1} fps); faces in {frames_with_faces} \
+         frames; {} full detections, {} tracked searches, {} estimates rejected by the filter",
         stats.frames,
         stats.seconds,
         stats.tracker.full_detections,
         stats.tracker.local_searches,
         stats.rejected
     );
+    if let Some((o, plan)) = &written {
+        eprintln!("unshear video: wrote {}: {}", o.display(), describe(plan));
+    }
+    if let Some((_, probe)) = &container {
+        let r = probe.video.rotation;
+        if r != 0 && !matches!(output, Output::Container(_) | Output::None) {
+            eprintln!(
+                "unshear video: note: the input is flagged for display rotated by {r} degrees; \
+                 y4m and frame folders carry no such flag, so their frames are as stored"
+            );
+        }
+        if frames_with_faces == 0 && r != 0 {
+            eprintln!(
+                "unshear video: note: no face was found; the frames are stored rotated by {r} \
+                 degrees for display (e.g. a phone held upright) and are analysed as stored, \
+                 where rolling shutter shears them, so faces upright on screen lie on their \
+                 side or upside down there, where the detector does not find them"
+            );
+        }
+    }
     Ok(())
+}
+
+/// Where frames go.
+enum Output {
+    None,
+    Stdout,
+    Y4mFile(PathBuf),
+    Folder(PathBuf),
+    Container(PathBuf),
+}
+
+/// Writing a video file: the checks of the output, the temporary file beside it, the plan,
+/// and the encoding `ffmpeg` started.
+struct EncodeJob {
+    out: PathBuf,
+    dir: PathBuf,
+    ext: String,
+    tmp: TempOutput,
+    plan: EncodePlan,
+    encoder: PendingEncoder,
+}
+
+impl EncodeJob {
+    /// Checks `out` (never an input, replaced only with `--force`), creates the temporary file
+    /// and starts `ffmpeg` on it, for frames of `bit_depth` from `source`, if a video file.
+    fn start(
+        a: &VideoArgs,
+        ff: &Ffmpeg,
+        out: &Path,
+        protected: &[PathBuf],
+        bit_depth: u32,
+        source: Option<(&Path, &Probe)>,
+    ) -> Result<Self> {
+        if protected.iter().any(|p| same_path(p, out)) {
+            bail!("refusing to write {}: it is an input file", out.display());
+        }
+        if out.exists() && !a.force {
+            bail!(
+                "refusing to write {}: it exists; use --force to replace it",
+                out.display()
+            );
+        }
+        let dir = match out.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        let ext = out
+            .extension()
+            .and_then(|e| e.to_str())
+            .unwrap_or("mp4")
+            .to_string();
+        let tmp = TempOutput::new(&dir, &ext)?;
+        let settings = EncodeSettings {
+            codec: a.codec.clone(),
+            crf: a.crf,
+            preset: a.preset.clone(),
+        };
+        let plan = EncodePlan::new(tmp.path(), bit_depth, source, &settings, &ff.caps)?;
+        let encoder = PendingEncoder::spawn(&ff.tools, &plan.args, out)?;
+        Ok(Self {
+            out: out.to_path_buf(),
+            dir,
+            ext,
+            tmp,
+            plan,
+            encoder,
+        })
+    }
+
+    /// Gives the encoder the y4m header (the input's own, or one made for image frames of
+    /// `format`), lets `process` run the clip into it, and renames the file to the output's
+    /// name only when everything succeeded (after the remux pass that sets the rotation, for
+    /// an older ffmpeg).
+    fn finish(
+        self,
+        a: &VideoArgs,
+        ff: &Ffmpeg,
+        header: Option<&[u8]>,
+        format: &VideoFormat,
+        process: impl FnOnce(&mut dyn FrameSink) -> unshear::Result<RunStats>,
+    ) -> Result<(RunStats, EncodePlan)> {
+        let Self {
+            out,
+            dir,
+            ext,
+            tmp,
+            plan,
+            encoder,
+        } = self;
+        let header = match header {
+            Some(h) => h.to_vec(),
+            None => Y4mWriter::new(Vec::new(), format)?.finish()?,
+        };
+        let mut encoder = encoder.begin(&header)?;
+        let stats = process(&mut encoder).with_context(|| format!("writing {}", out.display()))?;
+        drop(encoder);
+        let finished = match plan.remux_rotation {
+            Some(rotation) => {
+                let rotated = TempOutput::new(&dir, &ext)?;
+                let args = EncodePlan::remux_args(tmp.path(), rotated.path(), rotation);
+                ff.tools
+                    .run(&args, &format!("setting the rotation of {}", out.display()))?;
+                // Only older FFmpeg (5.1, not 7.0) takes the tag this way: check that it did.
+                let got = ff.tools.probe(rotated.path())?.video.rotation;
+                if got != rotation {
+                    eprintln!(
+                        "unshear video: warning: this ffmpeg did not keep the rotation \
+                         ({rotation} degrees, the output has {got}); an FFmpeg with \
+                         -display_rotation (7.0 has it) sets
+                         it directly"
+                    );
+                }
+                rotated
+            }
+            None => tmp,
+        };
+        if interrupt::requested() {
+            bail!("interrupted");
+        }
+        finished.persist(&out, a.force)?;
+        Ok((stats, plan))
+    }
+}
+
+/// What an encoding did, for the summary.
+fn describe(plan: &EncodePlan) -> String {
+    let mut video = match &plan.codec {
+        Some(c) => format!("video {c}"),
+        None => "video in ffmpeg's default codec".to_string(),
+    };
+    if let Some(q) = plan.crf {
+        video.push_str(&format!(" crf {q}"));
+    }
+    if let Some(p) = &plan.preset {
+        video.push_str(&format!(" preset {p}"));
+    }
+    let mut parts = vec![video];
+    let count = |v: &[(unshear::video::ffmpeg::Stream, StreamAction)], kind: &str| {
+        let copied = v.iter().filter(|(_, x)| *x == StreamAction::Copy).count();
+        let converted: Vec<String> = v
+            .iter()
+            .filter_map(|(s, x)| match x {
+                StreamAction::Convert(e) => Some(format!("{} to {e}", s.codec)),
+                _ => None,
+            })
+            .collect();
+        let dropped: Vec<String> = v
+            .iter()
+            .filter_map(|(s, x)| match x {
+                StreamAction::Drop(why) => Some(format!("{} stream {}: {why}", s.codec, s.index)),
+                _ => None,
+            })
+            .collect();
+        let mut p = Vec::new();
+        if copied > 0 {
+            p.push(format!("{copied} {kind} copied"));
+        }
+        if !converted.is_empty() {
+            p.push(format!("{kind} converted ({})", converted.join(", ")));
+        }
+        if !dropped.is_empty() {
+            p.push(format!("{kind} left out ({})", dropped.join(", ")));
+        }
+        p
+    };
+    parts.extend(count(&plan.audio, "audio"));
+    parts.extend(count(&plan.subtitles, "subtitles"));
+    if let Some(r) = plan.rotation_lost {
+        parts.push(format!(
+            "rotation {r} not kept (the container has no rotation flag)"
+        ));
+    }
+    parts.join("; ")
 }
 
 /// `fps` as a y4m rate fraction (exact for integers, 1/1000 precision otherwise).
@@ -374,37 +709,45 @@ fn same_path(a: &Path, b: &Path) -> bool {
     }
 }
 
-/// `frames, fps` on stderr, redrawn at most twice a second, only when stderr is a terminal.
+/// A progress bar on stderr, only when stderr is a terminal: frames (of the expected count when
+/// known), frames per second and time left.
 struct Progress {
-    enabled: bool,
-    start: Instant,
-    last: Instant,
-    frames: u64,
+    bar: ProgressBar,
 }
 
 impl Progress {
-    fn new() -> Self {
-        let now = Instant::now();
-        Self {
-            enabled: std::io::stderr().is_terminal(),
-            start: now,
-            last: now,
-            frames: 0,
+    fn new(expected: Option<u64>) -> Self {
+        if !std::io::stderr().is_terminal() {
+            return Self {
+                bar: ProgressBar::hidden(),
+            };
         }
+        let bar = ProgressBar::with_draw_target(expected, ProgressDrawTarget::stderr_with_hz(4));
+        let template = if expected.is_some() {
+            "unshear video {bar:30} {pos}/{len} frames, {fps}, {eta} left"
+        } else {
+            "unshear video {spinner} {pos} frames, {fps}"
+        };
+        if let Ok(style) = ProgressStyle::with_template(template) {
+            bar.set_style(style.with_key(
+                "fps",
+                |state: &ProgressState, w: &mut dyn std::fmt::Write| {
+                    let _ = write!(w, "{:.1} fps", state.per_sec());
+                },
+            ));
+        }
+        Self { bar }
     }
 
     fn frame(&mut self) {
-        self.frames += 1;
-        if self.enabled && self.last.elapsed().as_secs_f64() >= 0.5 {
-            self.last = Instant::now();
-            let fps = self.frames as f64 / self.start.elapsed().as_secs_f64().max(1e-9);
-            eprint!("\runshear video: frame {} ({fps:.1} fps)   ", self.frames);
+        // The expected count may be an estimate: grow the bar rather than overflow it.
+        if self.bar.length().is_some_and(|l| self.bar.position() >= l) {
+            self.bar.inc_length(1);
         }
+        self.bar.inc(1);
     }
 
     fn finish(&self) {
-        if self.enabled && self.frames > 0 {
-            eprint!("\r{:60}\r", "");
-        }
+        self.bar.finish_and_clear();
     }
 }
