@@ -257,6 +257,12 @@ pub struct EstimateArgs {
     /// Follow links to folders when walking folders (links to files are always followed).
     #[arg(help_heading = "Input and output", short = 'L', long = "follow")]
     pub follow: bool,
+    /// Process only slice I of N of the inputs (0-based; the files sorted by path, cut into N
+    /// contiguous slices), so that N processes share a batch with no coordinator. `auto`: I
+    /// from $JOB_COMPLETION_INDEX (a Kubernetes Indexed Job), N from $JOB_COMPLETIONS;
+    /// `auto/N`: N given.
+    #[arg(help_heading = "Input and output", long, value_name = "I/N|auto", value_parser = parse_shard)]
+    pub shard: Option<ShardArg>,
     #[command(flatten)]
     pub model: ModelArgs,
 }
@@ -308,6 +314,15 @@ pub struct CorrectArgs {
     /// Follow links to folders when walking folders (links to files are always followed).
     #[arg(help_heading = "Input and output", short = 'L', long = "follow")]
     pub follow: bool,
+    /// Process only slice I of N of the inputs (see `estimate --shard`).
+    #[arg(
+        help_heading = "Input and output",
+        long,
+        value_name = "I/N|auto",
+        value_parser = parse_shard,
+        conflicts_with_all = ["output", "annotate"]
+    )]
+    pub shard: Option<ShardArg>,
     #[command(flatten)]
     pub model: ModelArgs,
 }
@@ -653,6 +668,88 @@ impl From<InterpArg> for unshear::warp::Interpolation {
     }
 }
 
+/// `--shard`: which slice of the inputs this process handles.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ShardArg {
+    /// Slice `index` of `count` (`I/N`).
+    Fixed {
+        /// 0-based, below `count`.
+        index: usize,
+        /// At least 1.
+        count: usize,
+    },
+    /// The index from `$JOB_COMPLETION_INDEX`; the count given (`auto/N`) or from
+    /// `$JOB_COMPLETIONS` (`auto`).
+    Auto {
+        /// `N` of `auto/N`.
+        count: Option<usize>,
+    },
+}
+
+/// The variable a Kubernetes Indexed Job sets to each pod's index.
+pub const SHARD_INDEX_VAR: &str = "JOB_COMPLETION_INDEX";
+/// The variable `--shard auto` reads the number of shards from (set it to the Job's
+/// `completions`).
+pub const SHARD_COUNT_VAR: &str = "JOB_COMPLETIONS";
+
+fn parse_count(s: &str) -> Result<usize, String> {
+    match s.trim().parse::<usize>() {
+        Ok(n) if n >= 1 => Ok(n),
+        _ => Err(format!(
+            "the number of shards must be a whole number from 1, got {s:?}"
+        )),
+    }
+}
+
+fn parse_shard(s: &str) -> Result<ShardArg, String> {
+    if s == "auto" {
+        return Ok(ShardArg::Auto { count: None });
+    }
+    let Some((i, n)) = s.split_once('/') else {
+        return Err(format!(
+            "expected I/N (e.g. 0/4), auto or auto/N, got {s:?}"
+        ));
+    };
+    let count = parse_count(n)?;
+    if i == "auto" {
+        return Ok(ShardArg::Auto { count: Some(count) });
+    }
+    let index = parse_index(i, count)?;
+    Ok(ShardArg::Fixed { index, count })
+}
+
+fn parse_index(i: &str, count: usize) -> Result<usize, String> {
+    match i.trim().parse::<usize>() {
+        Ok(index) if index < count => Ok(index),
+        _ => Err(format!(
+            "the shard index must be a whole number from 0 to {}, got {i:?}",
+            count - 1
+        )),
+    }
+}
+
+impl ShardArg {
+    /// `(index, count)`, reading the environment (through `var`) for `auto`.
+    pub fn resolve(self, var: impl Fn(&str) -> Option<String>) -> Result<(usize, usize), String> {
+        let (index, count) = match self {
+            ShardArg::Fixed { index, count } => return Ok((index, count)),
+            ShardArg::Auto { count } => (var(SHARD_INDEX_VAR), count),
+        };
+        let count = match count {
+            Some(n) => n,
+            None => {
+                let n = var(SHARD_COUNT_VAR).ok_or_else(|| {
+                    format!("--shard auto needs ${SHARD_COUNT_VAR} (or use --shard auto/N)")
+                })?;
+                parse_count(&n).map_err(|e| format!("${SHARD_COUNT_VAR}: {e}"))?
+            }
+        };
+        let index = index.ok_or_else(|| format!("--shard auto needs ${SHARD_INDEX_VAR}"))?;
+        let index = parse_index(&index, count).map_err(|e| format!("${SHARD_INDEX_VAR}: {e}"))?;
+        Ok((index, count))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -698,5 +795,37 @@ mod tests {
         ] {
             assert!(help.contains(&expected), "{expected} not in: {help}");
         }
+    }
+
+    #[test]
+    fn shard_forms_parse_and_resolve() {
+        let env = |pairs: &'static [(&'static str, &'static str)]| {
+            move |name: &str| {
+                pairs
+                    .iter()
+                    .find(|(k, _)| *k == name)
+                    .map(|(_, v)| v.to_string())
+            }
+        };
+        let none = env(&[]);
+        assert_eq!(
+            parse_shard("2/4"),
+            Ok(ShardArg::Fixed { index: 2, count: 4 })
+        );
+        assert_eq!(parse_shard("2/4").and_then(|s| s.resolve(none)), Ok((2, 4)));
+        assert_eq!(parse_shard("auto"), Ok(ShardArg::Auto { count: None }));
+        assert_eq!(parse_shard("auto/3"), Ok(ShardArg::Auto { count: Some(3) }));
+        for bad in ["4/4", "-1/4", "1/0", "1", "a/b", "1/4/5", "", "auto/0"] {
+            assert!(parse_shard(bad).is_err(), "{bad:?} accepted");
+        }
+        let k8s = env(&[("JOB_COMPLETION_INDEX", "1"), ("JOB_COMPLETIONS", "3")]);
+        assert_eq!(ShardArg::Auto { count: None }.resolve(k8s), Ok((1, 3)));
+        assert_eq!(ShardArg::Auto { count: Some(5) }.resolve(k8s), Ok((1, 5)));
+        assert!(ShardArg::Auto { count: None }.resolve(none).is_err());
+        assert!(ShardArg::Auto { count: Some(2) }.resolve(none).is_err());
+        let out_of_range = env(&[("JOB_COMPLETION_INDEX", "3"), ("JOB_COMPLETIONS", "3")]);
+        assert!(ShardArg::Auto { count: None }
+            .resolve(out_of_range)
+            .is_err());
     }
 }

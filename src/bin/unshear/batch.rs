@@ -87,6 +87,28 @@ pub fn collect_inputs(
     out
 }
 
+/// What [`collect_inputs`] gives for one input.
+pub type Collected = Result<Input, (PathBuf, String)>;
+
+/// The `index`-th of `count` slices of `inputs` (`--shard`): every input, failed ones too,
+/// sorted by path, cut into `count` contiguous slices whose sizes differ by at most one. The
+/// same inputs give every process the same order, so `count` processes with the indices
+/// `0..count` take every input exactly once.
+pub fn shard(mut inputs: Vec<Collected>, index: usize, count: usize) -> Vec<Collected> {
+    let path = |c: &Collected| match c {
+        Ok(input) => input.path.clone(),
+        Err((p, _)) => p.clone(),
+    };
+    inputs.sort_by_key(path);
+    let bound = |i: usize| (inputs.len() as u128 * i as u128 / count.max(1) as u128) as usize;
+    let (start, end) = (bound(index), bound(index + 1));
+    inputs
+        .into_iter()
+        .skip(start)
+        .take(end.saturating_sub(start))
+        .collect()
+}
+
 fn is_image_name(p: &Path) -> bool {
     let ext_ok = p
         .extension()
@@ -186,6 +208,45 @@ mod tests {
             })
             .collect();
         assert_eq!(found, ["a.PNG", "b.jpg", "sub/c.webp"]);
+    }
+
+    proptest::proptest! {
+        /// N shards take every input exactly once, whatever the order the inputs came in.
+        #[test]
+        fn shards_cover_every_input_once(
+            names in proptest::collection::vec("[a-c]{1,3}(/[a-c]{1,2})?", 0..40),
+            count in 1usize..9,
+        ) {
+            let inputs = || -> Vec<Collected> {
+                names
+                    .iter()
+                    .enumerate()
+                    .map(|(i, n)| {
+                        if i % 7 == 3 {
+                            Err((PathBuf::from(n), "unreadable".to_string()))
+                        } else {
+                            Ok(Input { path: PathBuf::from(n), root: None })
+                        }
+                    })
+                    .collect()
+            };
+            let key = |c: &Collected| match c {
+                Ok(i) => i.path.clone(),
+                Err((p, _)) => p.clone(),
+            };
+            let mut seen: Vec<PathBuf> = Vec::new();
+            let mut sizes = Vec::new();
+            for index in 0..count {
+                let part = shard(inputs(), index, count);
+                sizes.push(part.len());
+                seen.extend(part.iter().map(key));
+            }
+            let mut all: Vec<PathBuf> = inputs().iter().map(key).collect();
+            all.sort();
+            proptest::prop_assert_eq!(seen, all);
+            let (lo, hi) = (sizes.iter().min().copied(), sizes.iter().max().copied());
+            proptest::prop_assert!(hi.unwrap_or(0) - lo.unwrap_or(0) <= 1);
+        }
     }
 
     /// The names found under `root` (walking it with `follow`), and the errors, as text.

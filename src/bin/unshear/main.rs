@@ -23,7 +23,7 @@ use args::{
     Cli, Command, CorrectArgs, DistortArgs, EstimateArgs, EvalCommand, EvalNostrilsArgs,
     EvalRecognitionArgs, EvalShearArgs, TrainArgs,
 };
-use batch::{collect_inputs, run_ordered, Input};
+use batch::{collect_inputs, run_ordered, shard, Collected, Input};
 use models::load_models;
 use report::JsonLine;
 use unshear::filters::FilterType;
@@ -176,9 +176,21 @@ fn error_chain(e: &anyhow::Error) -> String {
     message
 }
 
+/// The inputs named, or with `--shard` this process's slice of them.
+fn inputs_of(paths: &[PathBuf], follow: bool, shard_arg: Option<args::ShardArg>) -> Vec<Collected> {
+    let inputs = collect_inputs(paths, follow);
+    let Some(spec) = shard_arg else {
+        return inputs;
+    };
+    match spec.resolve(|name| std::env::var(name).ok()) {
+        Ok((index, count)) => shard(inputs, index, count),
+        Err(e) => usage_error(&format!("--shard: {e}")),
+    }
+}
+
 fn estimate(a: EstimateArgs) -> Result<bool> {
     let unshear = load_models(&a.model, Config::default())?;
-    let inputs = collect_inputs(&a.inputs, a.follow);
+    let inputs = inputs_of(&a.inputs, a.follow, a.shard);
     let mut all_ok = true;
     let done = run_ordered(
         &inputs,
@@ -320,7 +332,7 @@ fn create_parent(path: &Path) -> Result<()> {
 }
 
 fn correct(a: CorrectArgs) -> Result<bool> {
-    let inputs = collect_inputs(&a.inputs, a.follow);
+    let inputs = inputs_of(&a.inputs, a.follow, a.shard);
     if inputs.len() > 1 && a.output.is_some() {
         usage_error("-o/--output takes one input; use --out-dir for several");
     }

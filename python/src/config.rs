@@ -1,0 +1,342 @@
+//! The corrector's settings, as Python keyword arguments: parsed and checked here, turned into
+//! the library's `Config` by [`to_config`] (as the CLI turns its flags into one).
+
+use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+
+use unshear::detect::DetectorParams;
+use unshear::estimate::ShearModel;
+use unshear::filters::FilterType;
+use unshear::{Config, FaceSearch, Locator, Unshear};
+
+/// How hard faces are searched for (`search=`): the CLI's default, `--quick` and
+/// `--no-shear-search`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Search {
+    Thorough,
+    Quick,
+    Single,
+}
+
+/// Every setting of `unshear.Unshear(**config)`, with the CLI's defaults (`None`: the default
+/// of stills or of video, as the CLI leaves it).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PyConfig {
+    pub locator: Locator,
+    pub search: Search,
+    pub min_confidence: f64,
+    pub max_crops: Option<u16>,
+    pub refinements: usize,
+    pub shear_model: Option<ShearModel>,
+    pub filter_type: FilterType,
+    pub min_face: u32,
+    pub min_neighbors: u32,
+    pub scale_factor: f64,
+    pub proposals: bool,
+    pub fallback_cascade: bool,
+    pub search_every_view: bool,
+    pub shear_hypotheses: Option<Vec<f64>>,
+    pub roll_hypotheses: Option<Vec<f64>>,
+}
+
+impl Default for PyConfig {
+    /// The library's defaults for stills (`Config::default()`, the CLI's).
+    fn default() -> Self {
+        let c = Config::default();
+        Self {
+            locator: c.locator,
+            search: match c.search {
+                FaceSearch::Thorough => Search::Thorough,
+                FaceSearch::Quick => Search::Quick,
+            },
+            min_confidence: c.min_confidence,
+            max_crops: None,
+            refinements: c.refinements,
+            shear_model: None,
+            filter_type: c.filter_type,
+            min_face: c.detector.min_size.0,
+            min_neighbors: c.detector.min_neighbors,
+            scale_factor: c.detector.scale_factor,
+            proposals: c.proposals,
+            fallback_cascade: c.fallback_cascade,
+            search_every_view: c.search_every_view,
+            shear_hypotheses: c.shear_hypotheses,
+            roll_hypotheses: c.roll_hypotheses,
+        }
+    }
+}
+
+/// The keyword names, in the order `Unshear.config` lists them.
+pub const KEYS: [&str; 15] = [
+    "locator",
+    "search",
+    "min_confidence",
+    "max_crops",
+    "refinements",
+    "shear_model",
+    "filter_type",
+    "min_face",
+    "min_neighbors",
+    "scale_factor",
+    "proposals",
+    "fallback_cascade",
+    "search_every_view",
+    "shear_hypotheses",
+    "roll_hypotheses",
+];
+
+fn choice<T: Copy>(key: &str, value: &Bound<'_, PyAny>, options: &[(&str, T)]) -> PyResult<T> {
+    let text: String = value.extract().map_err(|_| {
+        PyTypeError::new_err(format!("{key} must be a string, got {}", type_name(value)))
+    })?;
+    options
+        .iter()
+        .find(|(name, _)| *name == text)
+        .map(|&(_, v)| v)
+        .ok_or_else(|| {
+            let names: Vec<&str> = options.iter().map(|(n, _)| *n).collect();
+            PyValueError::new_err(format!(
+                "{key} must be one of {}, got {text:?}",
+                names.join(", ")
+            ))
+        })
+}
+
+fn type_name(value: &Bound<'_, PyAny>) -> String {
+    value
+        .get_type()
+        .name()
+        .map_or_else(|_| "?".to_string(), |n| n.to_string())
+}
+
+fn number<T: for<'a, 'py> FromPyObject<'a, 'py>>(
+    key: &str,
+    value: &Bound<'_, PyAny>,
+    what: &str,
+) -> PyResult<T> {
+    if value.is_instance_of::<pyo3::types::PyBool>() {
+        return Err(PyTypeError::new_err(format!(
+            "{key} must be {what}, got bool"
+        )));
+    }
+    value.extract::<T>().map_err(|_| {
+        PyTypeError::new_err(format!("{key} must be {what}, got {}", type_name(value)))
+    })
+}
+
+fn flag(key: &str, value: &Bound<'_, PyAny>) -> PyResult<bool> {
+    if !value.is_instance_of::<pyo3::types::PyBool>() {
+        return Err(PyTypeError::new_err(format!(
+            "{key} must be True or False, got {}",
+            type_name(value)
+        )));
+    }
+    value.extract()
+}
+
+fn floats(key: &str, value: &Bound<'_, PyAny>) -> PyResult<Option<Vec<f64>>> {
+    if value.is_none() {
+        return Ok(None);
+    }
+    if value.is_instance_of::<pyo3::types::PyString>() {
+        return Err(PyTypeError::new_err(format!(
+            "{key} must be a sequence of numbers or None, got str"
+        )));
+    }
+    let list = value.extract::<Vec<f64>>().map_err(|_| {
+        PyTypeError::new_err(format!(
+            "{key} must be a sequence of numbers or None, got {}",
+            type_name(value)
+        ))
+    })?;
+    Ok(Some(list))
+}
+
+pub const LOCATORS: [(&str, Locator); 2] =
+    [("network", Locator::Network), ("filters", Locator::Filters)];
+pub const SEARCHES: [(&str, Search); 3] = [
+    ("thorough", Search::Thorough),
+    ("quick", Search::Quick),
+    ("single", Search::Single),
+];
+pub const SHEAR_MODELS: [(&str, ShearModel); 3] = [
+    ("equation5", ShearModel::Equation5),
+    ("shear-roll", ShearModel::ShearRoll),
+    ("shear-roll-yaw", ShearModel::ShearRollYaw),
+];
+pub const FILTER_TYPES: [(&str, FilterType); 3] = [
+    ("umace", FilterType::Umace),
+    ("asef", FilterType::Asef),
+    ("mosse", FilterType::Mosse),
+];
+
+fn name_of<T: PartialEq + Copy>(options: &[(&'static str, T)], value: T) -> &'static str {
+    options
+        .iter()
+        .find(|(_, v)| *v == value)
+        .map_or("?", |(n, _)| *n)
+}
+
+impl PyConfig {
+    /// Parses the keyword arguments `kwargs` (every key must be one of [`KEYS`]; `None` for a
+    /// key means its default) and checks the values as the CLI does.
+    pub fn from_kwargs(caller: &str, kwargs: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
+        let mut c = Self::default();
+        let Some(kwargs) = kwargs else {
+            return Ok(c);
+        };
+        for (key, value) in kwargs.iter() {
+            let key: String = key.extract()?;
+            let optional_none = value.is_none()
+                && matches!(
+                    key.as_str(),
+                    "max_crops"
+                        | "shear_model"
+                        | "min_face"
+                        | "shear_hypotheses"
+                        | "roll_hypotheses"
+                );
+            if optional_none {
+                continue;
+            }
+            match key.as_str() {
+                "locator" => c.locator = choice(&key, &value, &LOCATORS)?,
+                "search" => c.search = choice(&key, &value, &SEARCHES)?,
+                "min_confidence" => c.min_confidence = number(&key, &value, "a number")?,
+                "max_crops" => c.max_crops = Some(number(&key, &value, "an integer")?),
+                "refinements" => c.refinements = number(&key, &value, "an integer")?,
+                "shear_model" => c.shear_model = Some(choice(&key, &value, &SHEAR_MODELS)?),
+                "filter_type" => c.filter_type = choice(&key, &value, &FILTER_TYPES)?,
+                "min_face" => c.min_face = number(&key, &value, "an integer")?,
+                "min_neighbors" => c.min_neighbors = number(&key, &value, "an integer")?,
+                "scale_factor" => c.scale_factor = number(&key, &value, "a number")?,
+                "proposals" => c.proposals = flag(&key, &value)?,
+                "fallback_cascade" => c.fallback_cascade = flag(&key, &value)?,
+                "search_every_view" => c.search_every_view = flag(&key, &value)?,
+                "shear_hypotheses" => c.shear_hypotheses = floats(&key, &value)?,
+                "roll_hypotheses" => c.roll_hypotheses = floats(&key, &value)?,
+                _ => {
+                    return Err(PyTypeError::new_err(format!(
+                        "{caller}() got an unexpected keyword argument '{key}' (settings: {})",
+                        KEYS.join(", ")
+                    )))
+                }
+            }
+        }
+        c.validate()?;
+        Ok(c)
+    }
+
+    /// The checks the CLI makes of its flags before the library sees them (clap's ranges and
+    /// conflicts); `Config::validate` checks the values themselves when the corrector is built.
+    pub fn validate(&self) -> PyResult<()> {
+        let bad = |m: &str| Err(PyValueError::new_err(m.to_string()));
+        if let Some(n) = self.max_crops {
+            if !(1..=64).contains(&n) {
+                return bad(&format!("max_crops must be 1 to 64, got {n}"));
+            }
+        }
+        if self.search == Search::Single
+            && (self.shear_hypotheses.is_some()
+                || self.roll_hypotheses.is_some()
+                || self.fallback_cascade
+                || self.search_every_view)
+        {
+            return bad(
+                "search=\"single\" is one detection pass: no shear_hypotheses, roll_hypotheses, \
+                 fallback_cascade or search_every_view",
+            );
+        }
+        if self.search_every_view && self.search != Search::Quick {
+            return bad(
+                "search_every_view goes with search=\"quick\" (the thorough search always \
+                 searches every view)",
+            );
+        }
+        Ok(())
+    }
+
+    /// The settings as a dict of the keyword arguments (what `Unshear.config` returns).
+    pub fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        d.set_item("locator", name_of(&LOCATORS, self.locator))?;
+        d.set_item("search", name_of(&SEARCHES, self.search))?;
+        d.set_item("min_confidence", self.min_confidence)?;
+        d.set_item("max_crops", self.max_crops)?;
+        d.set_item("refinements", self.refinements)?;
+        d.set_item(
+            "shear_model",
+            self.shear_model.map(|m| name_of(&SHEAR_MODELS, m)),
+        )?;
+        d.set_item("filter_type", name_of(&FILTER_TYPES, self.filter_type))?;
+        d.set_item("min_face", self.min_face)?;
+        d.set_item("min_neighbors", self.min_neighbors)?;
+        d.set_item("scale_factor", self.scale_factor)?;
+        d.set_item("proposals", self.proposals)?;
+        d.set_item("fallback_cascade", self.fallback_cascade)?;
+        d.set_item("search_every_view", self.search_every_view)?;
+        let list = |v: &Option<Vec<f64>>| -> PyResult<Option<Bound<'py, PyList>>> {
+            v.as_ref().map(|v| PyList::new(py, v)).transpose()
+        };
+        d.set_item("shear_hypotheses", list(&self.shear_hypotheses)?)?;
+        d.set_item("roll_hypotheses", list(&self.roll_hypotheses)?)?;
+        Ok(d)
+    }
+}
+
+/// Stills or video: what the settings left at `None` default to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Use {
+    Stills,
+    Video,
+}
+
+/// The library's `Config` for `cfg`, on top of `Config::default()` (stills) or
+/// `Config::video()`, exactly as the CLI makes it from the same flags (`config_from` in
+/// `src/bin/unshear/models.rs`).
+pub fn to_config(cfg: &PyConfig, use_: Use) -> Config {
+    let base = match use_ {
+        Use::Stills => Config::default(),
+        Use::Video => Config::video(),
+    };
+    let single = cfg.search == Search::Single;
+    let mut c = Config {
+        locator: cfg.locator,
+        search: match cfg.search {
+            Search::Thorough => FaceSearch::Thorough,
+            Search::Quick | Search::Single => FaceSearch::Quick,
+        },
+        min_confidence: cfg.min_confidence,
+        refinements: cfg.refinements,
+        proposals: cfg.proposals,
+        search_every_view: cfg.search_every_view,
+        shear_hypotheses: cfg.shear_hypotheses.clone(),
+        roll_hypotheses: cfg.roll_hypotheses.clone(),
+        fallback_cascade: cfg.fallback_cascade && !single,
+        filter_type: cfg.filter_type,
+        detector: DetectorParams {
+            min_size: (cfg.min_face, cfg.min_face),
+            min_neighbors: cfg.min_neighbors,
+            scale_factor: cfg.scale_factor,
+            ..DetectorParams::default()
+        },
+        ..base
+    };
+    if single {
+        c.shear_hypotheses = Some(Vec::new());
+        c.roll_hypotheses = Some(Vec::new());
+    }
+    if let Some(model) = cfg.shear_model {
+        c.shear_model = model;
+    }
+    if let Some(crops) = cfg.max_crops {
+        c.network_budget.max_passes = usize::from(crops);
+    }
+    c
+}
+
+/// The corrector for `cfg` with the built-in models (`Config::validate` refuses bad values).
+pub fn build(cfg: &PyConfig, use_: Use) -> unshear::Result<Unshear> {
+    Unshear::new(to_config(cfg, use_))
+}

@@ -1,0 +1,367 @@
+//! `unshear._unshear`: the Python binding of the `unshear` library (see `python/unshear/__init__.pyi`
+//! for the API as Python sees it, and `docs/python.md`).
+//!
+//! Every call copies its arrays into owned image buffers with the GIL held, then releases the GIL
+//! (`Python::detach`) for all the work in Rust, and takes it again only to build the results.
+
+mod config;
+mod image;
+mod report;
+mod video;
+
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
+
+use pyo3::exceptions::{
+    PyFileExistsError, PyFileNotFoundError, PyIsADirectoryError, PyOSError, PyPermissionError,
+    PyRuntimeError, PyValueError,
+};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use rayon::prelude::*;
+
+use ::image::DynamicImage;
+use unshear::imageio::{self, WriteOptions, DEFAULT_MAX_PIXELS};
+use unshear::pipeline::{CorrectOptions, Region};
+use unshear::warp::{Canvas, Interpolation};
+use unshear::{Error, ImageReport, Shear};
+
+use crate::config::{build, PyConfig, Use};
+use crate::image::{from_array, to_array, Input, Layout};
+use crate::report::{Face, Report};
+
+pyo3::create_exception!(
+    unshear,
+    NoFaceError,
+    PyValueError,
+    "No face gave an accepted estimate and no shear was given, so there is nothing to correct by."
+);
+
+/// The library's error as a Python exception carrying its message: files' errors as `OSError`
+/// (`FileNotFoundError`, `PermissionError`, ... by the operating system's reason), refused
+/// writes as `FileExistsError`, bad values as `ValueError`.
+pub fn to_pyerr(e: Error) -> PyErr {
+    let message = e.to_string();
+    match &e {
+        Error::Io { source, .. } => match source.kind() {
+            std::io::ErrorKind::NotFound => PyFileNotFoundError::new_err(message),
+            std::io::ErrorKind::PermissionDenied => PyPermissionError::new_err(message),
+            std::io::ErrorKind::AlreadyExists => PyFileExistsError::new_err(message),
+            std::io::ErrorKind::IsADirectory => PyIsADirectoryError::new_err(message),
+            _ => PyOSError::new_err(message),
+        },
+        Error::Image { .. } | Error::TooLarge { .. } => PyOSError::new_err(message),
+        Error::Refused { .. } => PyFileExistsError::new_err(message),
+        Error::InvalidArgument(_) | Error::Video(_) => PyValueError::new_err(message),
+        _ => PyRuntimeError::new_err(message),
+    }
+}
+
+fn region_of(name: &str) -> PyResult<Region> {
+    match name {
+        "image" => Ok(Region::Image),
+        "face" => Ok(Region::Face),
+        _ => Err(PyValueError::new_err(format!(
+            "region must be \"image\" or \"face\", got {name:?}"
+        ))),
+    }
+}
+
+fn canvas_of(name: &str) -> PyResult<Canvas> {
+    match name {
+        "same" => Ok(Canvas::Same),
+        "expand" => Ok(Canvas::Expand),
+        "crop" => Ok(Canvas::Crop),
+        _ => Err(PyValueError::new_err(format!(
+            "canvas must be \"same\", \"expand\" or \"crop\", got {name:?}"
+        ))),
+    }
+}
+
+pub fn interp_of(name: &str) -> PyResult<Interpolation> {
+    match name {
+        "linear" => Ok(Interpolation::Linear),
+        "cubic" => Ok(Interpolation::Cubic),
+        _ => Err(PyValueError::new_err(format!(
+            "interp must be \"linear\" or \"cubic\", got {name:?}"
+        ))),
+    }
+}
+
+fn finite(name: &str, v: Option<f64>) -> PyResult<()> {
+    match v {
+        Some(x) if !x.is_finite() => Err(PyValueError::new_err(format!(
+            "{name} must be a finite number, got {x}"
+        ))),
+        _ => Ok(()),
+    }
+}
+
+/// The rolling-shutter corrector: the built-in models with one set of settings, built once and
+/// used for any number of images, from any number of threads.
+#[pyclass(name = "Unshear", module = "unshear", frozen)]
+struct PyUnshear {
+    inner: unshear::Unshear,
+    config: PyConfig,
+    max_pixels: u64,
+    /// Thread pools of `estimate_many(threads=N)`, by size, made on first use.
+    pools: Mutex<Vec<(usize, Arc<rayon::ThreadPool>)>>,
+}
+
+impl PyUnshear {
+    fn pool(&self, threads: usize) -> PyResult<Arc<rayon::ThreadPool>> {
+        let mut pools = self
+            .pools
+            .lock()
+            .map_err(|_| PyRuntimeError::new_err("thread pool cache poisoned"))?;
+        if let Some((_, pool)) = pools.iter().find(|(n, _)| *n == threads) {
+            return Ok(pool.clone());
+        }
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .map_err(|e| PyRuntimeError::new_err(format!("starting {threads} threads: {e}")))?;
+        let pool = Arc::new(pool);
+        pools.push((threads, pool.clone()));
+        Ok(pool)
+    }
+
+    fn input(&self, py: Python<'_>, image: &Bound<'_, PyAny>, bgr: bool) -> PyResult<Input> {
+        from_array(py, image, bgr, self.max_pixels)
+    }
+}
+
+#[pymethods]
+impl PyUnshear {
+    #[new]
+    #[pyo3(signature = (*, max_pixels = DEFAULT_MAX_PIXELS, **config))]
+    fn new(py: Python<'_>, max_pixels: u64, config: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
+        let cfg = PyConfig::from_kwargs("Unshear", config)?;
+        let inner = py.detach(|| build(&cfg, Use::Stills)).map_err(to_pyerr)?;
+        Ok(Self {
+            inner,
+            config: cfg,
+            max_pixels,
+            pools: Mutex::new(Vec::new()),
+        })
+    }
+
+    /// The settings, as keyword arguments of ``Unshear(**config)``.
+    #[getter]
+    fn config<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        self.config.to_dict(py)
+    }
+
+    /// The largest image accepted, in pixels.
+    #[getter]
+    fn max_pixels(&self) -> u64 {
+        self.max_pixels
+    }
+
+    /// Finds the faces in ``image`` and estimates the shear from each.
+    #[pyo3(signature = (image, *, bgr = false))]
+    fn estimate(&self, py: Python<'_>, image: &Bound<'_, PyAny>, bgr: bool) -> PyResult<Report> {
+        let input = self.input(py, image, bgr)?;
+        let inner = py.detach(|| self.inner.estimate(&input.image));
+        Ok(Report { inner })
+    }
+
+    /// ``estimate`` on every image, in parallel.
+    #[pyo3(signature = (images, *, threads = None, bgr = false))]
+    fn estimate_many(
+        &self,
+        py: Python<'_>,
+        images: &Bound<'_, PyAny>,
+        threads: Option<usize>,
+        bgr: bool,
+    ) -> PyResult<Vec<Report>> {
+        let pool = match threads {
+            Some(0) => {
+                return Err(PyValueError::new_err("threads must be at least 1"));
+            }
+            Some(n) => Some(self.pool(n)?),
+            None => None,
+        };
+        let inputs: Vec<DynamicImage> = images
+            .try_iter()?
+            .map(|item| Ok(self.input(py, &item?, bgr)?.image))
+            .collect::<PyResult<_>>()?;
+        let reports: Vec<ImageReport> = py.detach(|| {
+            let run = || {
+                inputs
+                    .par_iter()
+                    .map(|img| self.inner.estimate(img))
+                    .collect()
+            };
+            match &pool {
+                Some(pool) => pool.install(run),
+                None => run(),
+            }
+        });
+        Ok(reports.into_iter().map(|inner| Report { inner }).collect())
+    }
+
+    /// Removes the shear from ``image``: the estimated one (or ``report``'s), or ``k``.
+    #[pyo3(signature = (image, k = None, *, region = "image", canvas = "same", interp = "linear", report = None, bgr = false))]
+    #[allow(clippy::too_many_arguments)]
+    fn correct<'py>(
+        &self,
+        py: Python<'py>,
+        image: &Bound<'py, PyAny>,
+        k: Option<f64>,
+        region: &str,
+        canvas: &str,
+        interp: &str,
+        report: Option<PyRef<'_, Report>>,
+        bgr: bool,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        finite("k", k)?;
+        let options = CorrectOptions {
+            region: region_of(region)?,
+            canvas: canvas_of(canvas)?,
+            interpolation: interp_of(interp)?,
+            k,
+        };
+        let given = report.map(|r| r.inner.clone());
+        let Input { image, layout } = self.input(py, image, bgr)?;
+        if let Some(r) = &given {
+            if (r.width, r.height) != (image.width(), image.height()) {
+                return Err(PyValueError::new_err(format!(
+                    "the report is of a {}x{} image, this image is {}x{}",
+                    r.width,
+                    r.height,
+                    image.width(),
+                    image.height()
+                )));
+            }
+        }
+        let result = py.detach(|| -> Result<DynamicImage, PyErr> {
+            // The estimate only where it is needed: not for a whole-image correction by `k`.
+            let needs_faces = options.region == Region::Face || options.k.is_none();
+            let report = match given {
+                Some(r) => r,
+                None if needs_faces => self.inner.estimate(&image),
+                None => ImageReport {
+                    k: None,
+                    faces: Vec::new(),
+                    faces_disagree: false,
+                    warnings: Vec::new(),
+                    width: image.width(),
+                    height: image.height(),
+                },
+            };
+            let nothing = match options.region {
+                Region::Image => options.k.is_none() && report.k.is_none(),
+                Region::Face => report.faces.is_empty(),
+            };
+            if nothing {
+                return Err(NoFaceError::new_err(
+                    "no face found with an accepted estimate; give k= to correct anyway",
+                ));
+            }
+            self.inner
+                .correct(&image, &report, &options)
+                .map_err(to_pyerr)
+        })?;
+        to_array(py, result, layout)
+    }
+
+    /// ``Unshear(...)`` with the settings that differ from the defaults.
+    fn __repr__(&self, py: Python<'_>) -> PyResult<String> {
+        let ours = self.config.to_dict(py)?;
+        let defaults = PyConfig::default().to_dict(py)?;
+        let mut parts = Vec::new();
+        for key in config::KEYS {
+            let value = ours.as_any().get_item(key)?;
+            if !value.eq(defaults.as_any().get_item(key)?)? {
+                parts.push(format!("{key}={}", value.repr()?));
+            }
+        }
+        if self.max_pixels != DEFAULT_MAX_PIXELS {
+            parts.push(format!("max_pixels={}", self.max_pixels));
+        }
+        Ok(format!("Unshear({})", parts.join(", ")))
+    }
+}
+
+/// Reads an image file (format from the content, EXIF orientation applied, size checked before
+/// decoding) into a numpy array.
+#[pyfunction]
+#[pyo3(signature = (path, *, bgr = false, max_pixels = DEFAULT_MAX_PIXELS))]
+fn read(py: Python<'_>, path: PathBuf, bgr: bool, max_pixels: u64) -> PyResult<Bound<'_, PyAny>> {
+    let img = py
+        .detach(|| imageio::read_image(&path, max_pixels))
+        .map_err(to_pyerr)?;
+    let two_d = !img.color().has_color() && !img.color().has_alpha();
+    let bgr = bgr && img.color().has_color();
+    to_array(py, img, Layout { two_d, bgr })
+}
+
+/// Writes an image array to ``path`` (format from the extension), atomically.
+#[pyfunction]
+#[pyo3(signature = (path, image, *, bgr = false, overwrite = true, jpeg_quality = 95))]
+fn write(
+    py: Python<'_>,
+    path: PathBuf,
+    image: &Bound<'_, PyAny>,
+    bgr: bool,
+    overwrite: bool,
+    jpeg_quality: u8,
+) -> PyResult<()> {
+    if !imageio::output_format_supported(&path) {
+        return Err(PyValueError::new_err(format!(
+            "{}: unsupported output format (use .jpg, .png, .pgm/.ppm, .bmp, .tif or .webp)",
+            path.display()
+        )));
+    }
+    let input = from_array(py, image, bgr, u64::MAX)?;
+    let options = WriteOptions {
+        overwrite,
+        jpeg_quality,
+        ..Default::default()
+    };
+    py.detach(|| imageio::write_image_atomic(&input.image, &path, options))
+        .map_err(to_pyerr)
+}
+
+/// Applies a shear, as a rolling shutter would: ``x' = x + k (y - pivot)``.
+#[pyfunction]
+#[pyo3(signature = (image, k, *, pivot = None, canvas = "same", interp = "linear"))]
+fn distort<'py>(
+    py: Python<'py>,
+    image: &Bound<'py, PyAny>,
+    k: f64,
+    pivot: Option<f64>,
+    canvas: &str,
+    interp: &str,
+) -> PyResult<Bound<'py, PyAny>> {
+    finite("k", Some(k))?;
+    finite("pivot", pivot)?;
+    let canvas = canvas_of(canvas)?;
+    let interp = interp_of(interp)?;
+    let Input { image, layout } = from_array(py, image, false, DEFAULT_MAX_PIXELS)?;
+    let shear = match pivot {
+        Some(c) => Shear::new(k, c),
+        None => Shear::about_middle(k, image.height()),
+    };
+    let (out, _) = py
+        .detach(|| unshear::warp::try_apply_shear(&image, shear, interp, canvas))
+        .map_err(to_pyerr)?;
+    to_array(py, out, layout)
+}
+
+#[pymodule]
+fn _unshear(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyUnshear>()?;
+    m.add_class::<Report>()?;
+    m.add_class::<Face>()?;
+    m.add_class::<video::VideoCorrector>()?;
+    m.add_class::<video::Frame>()?;
+    m.add_function(wrap_pyfunction!(read, m)?)?;
+    m.add_function(wrap_pyfunction!(write, m)?)?;
+    m.add_function(wrap_pyfunction!(distort, m)?)?;
+    m.add("NoFaceError", m.py().get_type::<NoFaceError>())?;
+    m.add("DEFAULT_MAX_PIXELS", DEFAULT_MAX_PIXELS)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

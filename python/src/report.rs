@@ -1,0 +1,229 @@
+//! What `estimate` finds, as Python objects: `Face` and `Report` (and `Frame` for video), with
+//! the CLI's `--json` field names.
+
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+
+use unshear::{FaceReport, ImageReport, Point};
+
+type Pair = (f64, f64);
+
+fn pair(p: Point) -> Pair {
+    (p.x, p.y)
+}
+
+fn point_list<'py>(py: Python<'py>, p: Option<Point>) -> PyResult<Option<Bound<'py, PyList>>> {
+    p.map(|p| PyList::new(py, [p.x, p.y])).transpose()
+}
+
+/// One face: where it is, its landmarks and its shear. Points are ``(x, y)`` in the input's
+/// pixels, origin top left; the subject's right eye is on the image's left.
+#[pyclass(module = "unshear", frozen)]
+#[derive(Debug, Clone)]
+pub struct Face {
+    pub inner: FaceReport,
+}
+
+#[pymethods]
+impl Face {
+    /// The face box ``(x, y, width, height)``.
+    #[getter(r#box)]
+    fn face_box(&self) -> (f64, f64, f64, f64) {
+        let b = self.inner.face_box;
+        (b.x, b.y, b.width, b.height)
+    }
+
+    /// The subject's right eye (on the image's left).
+    #[getter]
+    fn right_eye(&self) -> Pair {
+        pair(self.inner.right_eye)
+    }
+
+    /// The subject's left eye (on the image's right).
+    #[getter]
+    fn left_eye(&self) -> Pair {
+        pair(self.inner.left_eye)
+    }
+
+    /// The subject's right nostril.
+    #[getter]
+    fn right_nostril(&self) -> Pair {
+        pair(self.inner.right_nostril)
+    }
+
+    /// The subject's left nostril.
+    #[getter]
+    fn left_nostril(&self) -> Pair {
+        pair(self.inner.left_nostril)
+    }
+
+    /// The nose point (the lower nose), or ``None`` when the locator gives none.
+    #[getter]
+    fn nose(&self) -> Option<Pair> {
+        self.inner.nose_tip.map(pair)
+    }
+
+    /// The mouth centre, or ``None``.
+    #[getter]
+    fn mouth(&self) -> Option<Pair> {
+        self.inner.mouth.map(pair)
+    }
+
+    /// The shear of this face, or ``None`` when the estimate was refused (confidence below
+    /// ``min_confidence``).
+    #[getter]
+    fn k(&self) -> Option<f64> {
+        self.inner.k
+    }
+
+    /// The shear measured, refused or not.
+    #[getter]
+    fn k_measured(&self) -> f64 {
+        self.inner.k_measured
+    }
+
+    /// The head's roll in degrees (positive: the subject's left eye, on the image's right, lower).
+    #[getter]
+    fn roll(&self) -> f64 {
+        self.inner.roll_degrees
+    }
+
+    /// The chance (0 to 1) that the estimate is within 0.10 of the true shear.
+    #[getter]
+    fn confidence(&self) -> f64 {
+        self.inner.confidence
+    }
+
+    /// The landmark network's face score (0 to 1), or ``None`` with ``locator="filters"``.
+    #[getter]
+    fn face_score(&self) -> Option<f64> {
+        self.inner.face_score
+    }
+
+    /// Why ``k`` is ``None`` (``"low_confidence"``, ``"implausible_shear"``, ...), or ``None``.
+    #[getter]
+    fn refused(&self) -> Option<&'static str> {
+        self.inner.refused.map(|r| r.name())
+    }
+
+    /// Whether the image's shear came from other faces that disagree with this one's.
+    #[getter]
+    fn outvoted(&self) -> bool {
+        self.inner.outvoted
+    }
+
+    /// The face as a dict with the CLI's ``--json`` keys (points as ``[x, y]`` lists, not
+    /// rounded).
+    pub(crate) fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let f = &self.inner;
+        let d = PyDict::new(py);
+        let b = f.face_box;
+        d.set_item("box", PyList::new(py, [b.x, b.y, b.width, b.height])?)?;
+        d.set_item("right_eye", point_list(py, Some(f.right_eye))?)?;
+        d.set_item("left_eye", point_list(py, Some(f.left_eye))?)?;
+        d.set_item("right_nostril", point_list(py, Some(f.right_nostril))?)?;
+        d.set_item("left_nostril", point_list(py, Some(f.left_nostril))?)?;
+        d.set_item("nose", point_list(py, f.nose_tip)?)?;
+        d.set_item("mouth", point_list(py, f.mouth)?)?;
+        d.set_item("k", f.k)?;
+        d.set_item("k_measured", f.k_measured)?;
+        d.set_item("roll", f.roll_degrees)?;
+        d.set_item("confidence", f.confidence)?;
+        d.set_item("refused", f.refused.map(|r| r.name()))?;
+        d.set_item("outvoted", f.outvoted)?;
+        Ok(d)
+    }
+
+    fn __repr__(&self) -> String {
+        let b = self.inner.face_box;
+        format!(
+            "Face(box=({:.1}, {:.1}, {:.1}, {:.1}), k={}, k_measured={:.4}, roll={:.2}, confidence={:.3})",
+            b.x,
+            b.y,
+            b.width,
+            b.height,
+            self.inner.k.map_or("None".to_string(), |k| format!("{k:.4}")),
+            self.inner.k_measured,
+            self.inner.roll_degrees,
+            self.inner.confidence
+        )
+    }
+}
+
+/// What was found in one image: its shear ``k`` (the confidence-weighted median of its faces'
+/// accepted estimates, ``None`` without one) and every face.
+#[pyclass(module = "unshear", frozen)]
+#[derive(Debug, Clone)]
+pub struct Report {
+    pub inner: ImageReport,
+}
+
+#[pymethods]
+impl Report {
+    /// The image's shear, or ``None`` when no face gave an accepted estimate.
+    #[getter]
+    fn k(&self) -> Option<f64> {
+        self.inner.k
+    }
+
+    /// Every face found, with its estimate.
+    #[getter]
+    fn faces(&self) -> Vec<Face> {
+        faces(&self.inner.faces)
+    }
+
+    /// The image's width in pixels.
+    #[getter]
+    fn width(&self) -> u32 {
+        self.inner.width
+    }
+
+    /// The image's height in pixels.
+    #[getter]
+    fn height(&self) -> u32 {
+        self.inner.height
+    }
+
+    /// Whether the faces' estimates disagree with no consistent majority (``k`` is then
+    /// ``None``).
+    #[getter]
+    fn faces_disagree(&self) -> bool {
+        self.inner.faces_disagree
+    }
+
+    /// What the caller should know about this image (views skipped, data missing, ...).
+    #[getter]
+    fn warnings(&self) -> Vec<String> {
+        self.inner.warnings.clone()
+    }
+
+    /// The report as a dict with the CLI's ``--json`` keys (``k``, ``faces``, ...), not rounded.
+    fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        d.set_item("k", self.inner.k)?;
+        let faces = PyList::empty(py);
+        for f in &self.inner.faces {
+            faces.append(Face { inner: *f }.to_dict(py)?)?;
+        }
+        d.set_item("faces", faces)?;
+        d.set_item("faces_disagree", self.inner.faces_disagree)?;
+        d.set_item("warnings", self.inner.warnings.clone())?;
+        Ok(d)
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Report(k={}, faces={}, width={}, height={})",
+            self.inner
+                .k
+                .map_or("None".to_string(), |k| format!("{k:.4}")),
+            self.inner.faces.len(),
+            self.inner.width,
+            self.inner.height
+        )
+    }
+}
+
+pub fn faces(faces: &[FaceReport]) -> Vec<Face> {
+    faces.iter().map(|&inner| Face { inner }).collect()
+}

@@ -1,0 +1,327 @@
+//! `unshear.VideoCorrector`: frames pushed one at a time through the library's
+//! `VideoProcessor` (the tracking, the temporal filter and the smoother of `unshear video`).
+
+use std::sync::Mutex;
+
+use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+
+use unshear::imageio::DEFAULT_MAX_PIXELS;
+use unshear::video::temporal::FilterParams;
+use unshear::video::tracker::TrackerParams;
+use unshear::video::{FrameResult, KSource, ProcessOptions, VideoFrame, VideoProcessor};
+
+use crate::config::{build, PyConfig, Use};
+use crate::image::{from_array, to_array, Layout};
+use crate::report::{faces, Face};
+use crate::{interp_of, to_pyerr};
+
+/// Frames the smoother may hold back (as `unshear video --smoothing-lag`).
+const MAX_SMOOTHING_LAG: usize = 250;
+
+type Processor<'a> = VideoProcessor<'a>;
+
+self_cell::self_cell!(
+    /// A corrector and the processor that borrows it, kept together.
+    struct Stream {
+        owner: unshear::Unshear,
+        #[covariant]
+        dependent: Processor,
+    }
+);
+
+/// What the first frame fixed: every later frame must have the same size and layout.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Shape {
+    width: u32,
+    height: u32,
+    color: ::image::ColorType,
+    layout: Layout,
+}
+
+struct State {
+    stream: Stream,
+    shape: Option<Shape>,
+    finished: bool,
+}
+
+/// One corrected frame: the image (in the layout and dtype it was pushed in) and its shears.
+#[pyclass(module = "unshear", frozen)]
+pub struct Frame {
+    image: Py<PyAny>,
+    result: FrameResult,
+}
+
+#[pymethods]
+impl Frame {
+    /// The frame, corrected by ``k_applied`` (unchanged with ``correct=False``).
+    #[getter]
+    fn image(&self, py: Python<'_>) -> Py<PyAny> {
+        self.image.clone_ref(py)
+    }
+
+    /// The frame's number, from 0.
+    #[getter]
+    fn index(&self) -> u64 {
+        self.result.index
+    }
+
+    /// The temporally filtered and smoothed shear of this frame.
+    #[getter]
+    fn k(&self) -> f64 {
+        self.result.k
+    }
+
+    /// This frame's own estimate (the median of its faces'), ``None`` without a usable face.
+    #[getter]
+    fn k_raw(&self) -> Option<f64> {
+        self.result.k_raw
+    }
+
+    /// The causal filter's shear after this frame (from this and earlier frames only).
+    #[getter]
+    fn k_causal(&self) -> f64 {
+        self.result.k_causal
+    }
+
+    /// The shear the frame was corrected by, ``None`` with ``correct=False``.
+    #[getter]
+    fn k_applied(&self) -> Option<f64> {
+        self.result.k_applied
+    }
+
+    /// Every tracked face with an estimate.
+    #[getter]
+    fn faces(&self) -> Vec<Face> {
+        faces(&self.result.faces)
+    }
+
+    /// The frame's line of ``unshear video --json`` as a dict (``frame``, ``k_raw``, ``k``,
+    /// ``faces``), not rounded.
+    fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        d.set_item("frame", self.result.index)?;
+        d.set_item("k_raw", self.result.k_raw)?;
+        d.set_item("k", self.result.k)?;
+        let list = PyList::empty(py);
+        for f in self.faces() {
+            list.append(f.to_dict(py)?)?;
+        }
+        d.set_item("faces", list)?;
+        Ok(d)
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Frame(index={}, k={:.4}, k_raw={}, faces={})",
+            self.result.index,
+            self.result.k,
+            self.result
+                .k_raw
+                .map_or("None".to_string(), |k| format!("{k:.4}")),
+            self.result.faces.len()
+        )
+    }
+}
+
+/// A video stream: push frames in order, get them back corrected, with the tracking and the
+/// temporal filter of ``unshear video``.
+#[pyclass(module = "unshear", frozen)]
+pub struct VideoCorrector {
+    state: Mutex<State>,
+    bgr: bool,
+    max_pixels: u64,
+    smoothing_lag: usize,
+}
+
+fn bad(message: String) -> PyErr {
+    PyValueError::new_err(message)
+}
+
+impl VideoCorrector {
+    fn lock(&self) -> PyResult<std::sync::MutexGuard<'_, State>> {
+        self.state
+            .lock()
+            .map_err(|_| PyRuntimeError::new_err("the video stream failed earlier"))
+    }
+}
+
+fn frames_out(
+    py: Python<'_>,
+    out: Vec<(VideoFrame, FrameResult)>,
+    layout: Layout,
+) -> PyResult<Vec<Frame>> {
+    out.into_iter()
+        .map(|(frame, result)| {
+            let image = match frame {
+                VideoFrame::Image(img) => to_array(py, img, layout)?,
+                // Only images are pushed, and the processor hands each frame back as it came.
+                _ => return Err(PyRuntimeError::new_err("unexpected YUV frame")),
+            };
+            Ok(Frame {
+                image: image.unbind(),
+                result,
+            })
+        })
+        .collect()
+}
+
+#[pymethods]
+impl VideoCorrector {
+    #[new]
+    #[pyo3(signature = (
+        *,
+        fps = 25.0,
+        smoothing_lag = unshear::video::temporal::DEFAULT_SMOOTHING_LAG,
+        redetect = 30,
+        lost_interval = 5,
+        detect_width = 640,
+        hold = 0.5,
+        decay = 1.0,
+        k_source = "filtered",
+        interp = "linear",
+        correct = true,
+        bgr = false,
+        max_pixels = DEFAULT_MAX_PIXELS,
+        **config
+    ))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        py: Python<'_>,
+        fps: f64,
+        smoothing_lag: usize,
+        redetect: u64,
+        lost_interval: u64,
+        detect_width: u32,
+        hold: f64,
+        decay: f64,
+        k_source: &str,
+        interp: &str,
+        correct: bool,
+        bgr: bool,
+        max_pixels: u64,
+        config: Option<&Bound<'_, PyDict>>,
+    ) -> PyResult<Self> {
+        if !(fps.is_finite() && fps > 0.0) {
+            return Err(bad(format!("fps must be a positive number, got {fps}")));
+        }
+        if !(hold.is_finite() && hold >= 0.0 && decay.is_finite() && decay > 0.0) {
+            return Err(bad("hold must be >= 0 and decay > 0 seconds".into()));
+        }
+        if redetect == 0 || lost_interval == 0 {
+            return Err(bad("redetect and lost_interval must be at least 1".into()));
+        }
+        if smoothing_lag > MAX_SMOOTHING_LAG {
+            return Err(bad(format!(
+                "smoothing_lag must be at most {MAX_SMOOTHING_LAG} frames (frames are held in memory)"
+            )));
+        }
+        let k_source = match k_source {
+            "filtered" => KSource::Filtered,
+            "raw" => KSource::Raw,
+            other => {
+                return Err(bad(format!(
+                    "k_source must be \"filtered\" or \"raw\", got {other:?}"
+                )))
+            }
+        };
+        let interpolation = interp_of(interp)?;
+        let cfg = PyConfig::from_kwargs("VideoCorrector", config)?;
+        let unshear = py.detach(|| build(&cfg, Use::Video)).map_err(to_pyerr)?;
+        let options = ProcessOptions {
+            tracker: TrackerParams {
+                redetect_interval: redetect,
+                lost_interval,
+                detect_width,
+                ..Default::default()
+            },
+            filter: FilterParams::default().with_times(hold, decay, fps),
+            smoothing_lag,
+            correct,
+            k_source,
+            interpolation,
+            network_budget: unshear.config().network_budget,
+        };
+        let stream = Stream::new(unshear, |u| VideoProcessor::new(u, options));
+        Ok(Self {
+            state: Mutex::new(State {
+                stream,
+                shape: None,
+                finished: false,
+            }),
+            bgr,
+            max_pixels,
+            smoothing_lag,
+        })
+    }
+
+    /// Frames pushed and not returned yet (at most ``smoothing_lag``).
+    #[getter]
+    fn pending(&self, py: Python<'_>) -> PyResult<usize> {
+        py.detach(|| Ok(self.lock()?.stream.borrow_dependent().pending()))
+    }
+
+    /// Frames held back by the smoother: each frame comes out this many pushes later.
+    #[getter]
+    fn smoothing_lag(&self) -> usize {
+        self.smoothing_lag
+    }
+
+    /// Takes the next frame; returns the frame now due (``smoothing_lag`` frames older),
+    /// corrected, as a list of zero or one ``Frame``.
+    fn push(&self, py: Python<'_>, frame: &Bound<'_, PyAny>) -> PyResult<Vec<Frame>> {
+        let input = from_array(py, frame, self.bgr, self.max_pixels)?;
+        let shape = Shape {
+            width: input.image.width(),
+            height: input.image.height(),
+            color: input.image.color(),
+            layout: input.layout,
+        };
+        let out = py.detach(|| -> PyResult<_> {
+            let mut state = self.lock()?;
+            if state.finished {
+                return Err(bad(
+                    "finish() was called: this stream is over (make a new VideoCorrector)".into(),
+                ));
+            }
+            match state.shape {
+                None => state.shape = Some(shape),
+                Some(first) if first != shape => {
+                    return Err(bad(format!(
+                        "every frame must have the first frame's size and layout: {}x{} {:?}, got {}x{} {:?}",
+                        first.width, first.height, first.color, shape.width, shape.height, shape.color
+                    )));
+                }
+                Some(_) => {}
+            }
+            state
+                .stream
+                .with_dependent_mut(|_, p| p.process(VideoFrame::Image(input.image)))
+                .map_err(to_pyerr)
+        })?;
+        frames_out(py, out.into_iter().collect(), shape.layout)
+    }
+
+    /// Ends the stream: returns every frame still held, corrected with the shears smoothed over
+    /// all the frames seen.
+    fn finish(&self, py: Python<'_>) -> PyResult<Vec<Frame>> {
+        let (out, layout) = py.detach(|| -> PyResult<_> {
+            let mut state = self.lock()?;
+            if state.finished {
+                return Ok((Vec::new(), None));
+            }
+            state.finished = true;
+            let layout = state.shape.map(|s| s.layout);
+            let out = state
+                .stream
+                .with_dependent_mut(|_, p| p.finish())
+                .map_err(to_pyerr)?;
+            Ok((out, layout))
+        })?;
+        match layout {
+            Some(layout) => frames_out(py, out, layout),
+            None => Ok(Vec::new()),
+        }
+    }
+}

@@ -1,0 +1,132 @@
+"""VideoCorrector: frames in, corrected frames out, with the tracking and filter of the CLI."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import cli_binary
+
+import unshear
+
+
+def clip(face: np.ndarray, n: int = 16, k: float = 0.25) -> list[np.ndarray]:
+    """A still face, sheared by k, drifting a pixel a frame on a 480 x 360 canvas."""
+    frames = []
+    sheared = unshear.distort(face, k)
+    for i in range(n):
+        canvas = np.full((360, 480, 3), 40, np.uint8)
+        y, x = 50 + i % 3, 60 + i
+        canvas[y : y + sheared.shape[0], x : x + sheared.shape[1]] = sheared
+        frames.append(canvas)
+    return frames
+
+
+def run(video: unshear.VideoCorrector, frames: list[np.ndarray]) -> list[unshear.Frame]:
+    out = []
+    for f in frames:
+        out += video.push(f)
+    return out + video.finish()
+
+
+def test_frames_come_back_in_order_corrected(faces: list[np.ndarray]) -> None:
+    frames = clip(faces[0])
+    video = unshear.VideoCorrector(fps=30)
+    assert video.smoothing_lag == 6
+    returned = [video.push(f) for f in frames]
+    assert [len(r) for r in returned] == [0] * 6 + [1] * 10
+    assert video.pending == 6
+    out = [r[0] for r in returned if r] + video.finish()
+    assert video.pending == 0
+    assert [f.index for f in out] == list(range(16))
+    for f in out:
+        assert f.image.shape == frames[0].shape and f.image.dtype == np.uint8
+        assert f.k_applied == f.k
+    tracked = [f for f in out if f.k_raw is not None]
+    assert len(tracked) >= 12
+    assert all(abs(f.k - 0.25) < 0.05 for f in out[4:]), [round(f.k, 3) for f in out]
+    assert all(len(f.faces) == 1 for f in tracked)
+    d = out[-1].to_dict()
+    assert set(d) == {"frame", "k_raw", "k", "faces"} and d["frame"] == 15
+    assert "Frame(index=15" in repr(out[-1])
+    # The corrected frame is the input de-sheared by k_applied.
+    last = out[-1]
+    assert last.k_applied is not None
+    expected = unshear.distort(frames[-1], -last.k_applied)
+    assert np.array_equal(last.image, expected)
+
+
+def test_layouts_no_correction_and_lag_zero(faces: list[np.ndarray]) -> None:
+    frames = clip(faces[1], n=5)
+    grey = [np.ascontiguousarray(f[:, :, 1]) for f in frames]
+    out = run(unshear.VideoCorrector(smoothing_lag=0, correct=False), grey)
+    assert len(out) == 5 and all(f.k_applied is None for f in out)
+    assert all(np.array_equal(a.image, b) for a, b in zip(out, grey))
+    bgr = unshear.VideoCorrector(smoothing_lag=0, bgr=True)
+    for f in frames:
+        (got,) = bgr.push(np.ascontiguousarray(f[:, :, ::-1]))
+        assert got.image.shape == f.shape
+    sixteen = run(
+        unshear.VideoCorrector(smoothing_lag=2), [f.astype(np.uint16) * 257 for f in frames]
+    )
+    assert all(f.image.dtype == np.uint16 for f in sixteen) and len(sixteen) == 5
+
+
+def test_bad_frames_and_settings(faces: list[np.ndarray]) -> None:
+    video = unshear.VideoCorrector(smoothing_lag=1)
+    video.push(np.zeros((100, 120, 3), np.uint8))
+    with pytest.raises(ValueError, match="first frame's size"):
+        video.push(np.zeros((100, 121, 3), np.uint8))
+    with pytest.raises(ValueError, match="first frame's size"):
+        video.push(np.zeros((100, 120), np.uint8))
+    with pytest.raises(ValueError, match="uint8 or uint16"):
+        video.push(np.zeros((100, 120, 3), np.float32))
+    assert len(video.finish()) == 1
+    assert video.finish() == []
+    with pytest.raises(ValueError, match="finish"):
+        video.push(np.zeros((100, 120, 3), np.uint8))
+    for kwargs, match in [
+        ({"fps": 0}, "fps"),
+        ({"hold": -1}, "hold"),
+        ({"redetect": 0}, "redetect"),
+        ({"smoothing_lag": 251}, "smoothing_lag"),
+        ({"k_source": "best"}, "k_source"),
+        ({"interp": "nearest"}, "interp"),
+        ({"min_confidence": 2}, "confidence 2 is outside 0 to 1"),
+    ]:
+        with pytest.raises(ValueError, match=match):
+            unshear.VideoCorrector(**kwargs)  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match="unexpected keyword argument 'frame_rate'"):
+        unshear.VideoCorrector(frame_rate=30)  # type: ignore[call-arg]
+    assert unshear.VideoCorrector().finish() == []
+
+
+def test_agrees_with_unshear_video(tmp_path: Path, faces: list[np.ndarray]) -> None:
+    """The same frames through `unshear video --json` and through VideoCorrector."""
+    binary = cli_binary()
+    if binary is None:
+        pytest.skip("no unshear CLI binary: set UNSHEAR_BIN or run `cargo build` first")
+    frames = clip(faces[2], n=12, k=-0.2)
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for i, f in enumerate(frames):
+        unshear.write(folder / f"{i:04}.png", f)
+    out = subprocess.run(
+        [str(binary), "video", str(folder), "--json", "--fps", "30"],
+        check=True,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    cli = [json.loads(line) for line in out.stdout.splitlines()]
+    ours = run(unshear.VideoCorrector(fps=30), frames)
+    assert len(cli) == len(ours) == 12
+    for a, b in zip(cli, ours):
+        assert a["frame"] == b.index
+        assert abs(a["k"] - b.k) <= 6e-5
+        assert (a["k_raw"] is None) == (b.k_raw is None)
+        if b.k_raw is not None:
+            assert abs(a["k_raw"] - b.k_raw) <= 6e-5

@@ -1,0 +1,333 @@
+"""Type stubs of ``unshear`` (the compiled module ``unshear._unshear``, re-exported)."""
+
+import os
+from collections.abc import Iterable
+from typing import Any, Literal, final
+
+import numpy as np
+import numpy.typing as npt
+from typing_extensions import TypeAlias
+
+__all__ = [
+    "DEFAULT_MAX_PIXELS",
+    "Face",
+    "Frame",
+    "NoFaceError",
+    "Report",
+    "Unshear",
+    "VideoCorrector",
+    "__version__",
+    "distort",
+    "read",
+    "write",
+]
+
+__version__: str
+DEFAULT_MAX_PIXELS: int
+"""The largest image accepted by default: 250,000,000 pixels (as the CLI's ``--max-pixels``)."""
+
+Image: TypeAlias = npt.NDArray[np.uint8] | npt.NDArray[np.uint16]
+"""An image array: H x W (grey), or H x W x C with C = 1 (grey), 2 (grey + alpha), 3 (RGB, or
+BGR with ``bgr=True``) or 4 (RGBA / BGRA); ``uint8`` or ``uint16``; any strides."""
+
+PathLike: TypeAlias = str | os.PathLike[str]
+Point: TypeAlias = tuple[float, float]
+Locator: TypeAlias = Literal["network", "filters"]
+Search: TypeAlias = Literal["thorough", "quick", "single"]
+ShearModel: TypeAlias = Literal["equation5", "shear-roll", "shear-roll-yaw"]
+FilterType: TypeAlias = Literal["umace", "asef", "mosse"]
+Region: TypeAlias = Literal["image", "face"]
+Canvas: TypeAlias = Literal["same", "expand", "crop"]
+Interp: TypeAlias = Literal["linear", "cubic"]
+
+class NoFaceError(ValueError):
+    """No face gave an accepted estimate and no shear was given: nothing to correct by."""
+
+@final
+class Face:
+    """One face: where it is, its landmarks and its shear.
+
+    Points are ``(x, y)`` in the input's pixels, origin top left; the subject's right eye is on
+    the image's left.
+    """
+
+    @property
+    def box(self) -> tuple[float, float, float, float]:
+        """The face box ``(x, y, width, height)``."""
+    @property
+    def right_eye(self) -> Point:
+        """The subject's right eye (on the image's left)."""
+    @property
+    def left_eye(self) -> Point:
+        """The subject's left eye (on the image's right)."""
+    @property
+    def right_nostril(self) -> Point:
+        """The subject's right nostril."""
+    @property
+    def left_nostril(self) -> Point:
+        """The subject's left nostril."""
+    @property
+    def nose(self) -> Point | None:
+        """The nose point (the lower nose), or ``None`` when the locator gives none."""
+    @property
+    def mouth(self) -> Point | None:
+        """The mouth centre, or ``None``."""
+    @property
+    def k(self) -> float | None:
+        """This face's shear, ``None`` when refused (confidence below ``min_confidence``)."""
+    @property
+    def k_measured(self) -> float:
+        """The shear measured, refused or not."""
+    @property
+    def roll(self) -> float:
+        """The head's roll in degrees (positive: the subject's left eye, image right, lower)."""
+    @property
+    def confidence(self) -> float:
+        """The chance (0 to 1) that the estimate is within 0.10 of the true shear."""
+    @property
+    def face_score(self) -> float | None:
+        """The landmark network's face score (0 to 1); ``None`` with ``locator="filters"``."""
+    @property
+    def refused(self) -> str | None:
+        """Why ``k`` is ``None`` (``"low_confidence"``, ``"implausible_shear"``, ...), or ``None``."""
+    @property
+    def outvoted(self) -> bool:
+        """Whether the image's shear came from other faces that disagree with this one's."""
+    def to_dict(self) -> dict[str, Any]:
+        """The face with the CLI's ``--json`` keys (points as ``[x, y]`` lists, not rounded)."""
+
+@final
+class Report:
+    """What was found in one image."""
+
+    @property
+    def k(self) -> float | None:
+        """The image's shear (from the consistent majority of its faces' accepted estimates), or
+        ``None`` when no face gave one."""
+    @property
+    def faces(self) -> list[Face]:
+        """Every face found, with its estimate."""
+    @property
+    def width(self) -> int:
+        """The image's width in pixels."""
+    @property
+    def height(self) -> int:
+        """The image's height in pixels."""
+    @property
+    def faces_disagree(self) -> bool:
+        """Whether the faces' estimates disagree with no consistent majority (``k`` is ``None``)."""
+    @property
+    def warnings(self) -> list[str]:
+        """What the caller should know about this image (views skipped, data missing, ...)."""
+    def to_dict(self) -> dict[str, Any]:
+        """``{"k": ..., "faces": [...]}`` with the CLI's ``--json`` keys, not rounded."""
+
+@final
+class Unshear:
+    """The rolling-shutter corrector: the built-in models with one set of settings.
+
+    Build it once and reuse it: construction loads the models (tens of milliseconds). One
+    object may be used from any number of threads at once; every call releases the GIL.
+
+    The settings mirror the CLI's options, with the CLI's defaults:
+
+    * ``locator``: what locates the eyes, nose and mouth: the landmark ``"network"`` (default)
+      or the paper's correlation ``"filters"`` (``--locator``).
+    * ``search``: ``"thorough"`` (default: every de-sheared and turned view of every image),
+      ``"quick"`` (``--quick``: 6 to 9 times faster on a frame with a face, about 4% fewer faces)
+      or ``"single"`` (``--no-shear-search``: one detection pass, the paper's).
+    * ``min_confidence``: refuse estimates below this confidence, 0 to 1 (default 0.25).
+    * ``max_crops``: most crops the network reads per face, 1 to 64 (default ``None``: 8 for
+      stills, stopping when the estimate settles; 2 for video) (``--max-crops``).
+    * ``refinements``: filters only: locate again in the de-sheared face (``--refine``, 0).
+    * ``shear_model``: filters only: ``"equation5"``, ``"shear-roll"`` or ``"shear-roll-yaw"``
+      (default ``None``: shear-roll-yaw for stills, equation5 for video).
+    * ``filter_type``: the built-in filter set, ``"mosse"`` (default), ``"asef"``, ``"umace"``.
+    * ``min_face``: smallest face box in pixels (default ``None``: the cascade's 20 px window);
+      60 makes detection about 4 times faster.
+    * ``min_neighbors`` (3) and ``scale_factor`` (1.1): the detector's OpenCV parameters.
+    * ``proposals``: the thorough search's face proposals (default ``True``; ``--no-proposals``).
+    * ``fallback_cascade``: also ask OpenCV's ``frontalface_default`` (default ``False``).
+    * ``search_every_view``: with ``search="quick"``, search every view of every image.
+    * ``shear_hypotheses`` / ``roll_hypotheses``: the de-sheared views' shears and the turned
+      views' rolls in degrees (default ``None``: the search's own).
+
+    ``max_pixels`` bounds the images accepted (default 250,000,000). Bad settings raise
+    ``ValueError`` (bad values) or ``TypeError`` (unknown names, wrong types).
+    """
+
+    def __new__(
+        cls,
+        *,
+        max_pixels: int = ...,
+        locator: Locator = "network",
+        search: Search = "thorough",
+        min_confidence: float = 0.25,
+        max_crops: int | None = None,
+        refinements: int = 0,
+        shear_model: ShearModel | None = None,
+        filter_type: FilterType = "mosse",
+        min_face: int | None = None,
+        min_neighbors: int = 3,
+        scale_factor: float = 1.1,
+        proposals: bool = True,
+        fallback_cascade: bool = False,
+        search_every_view: bool = False,
+        shear_hypotheses: Iterable[float] | None = None,
+        roll_hypotheses: Iterable[float] | None = None,
+    ) -> Unshear: ...
+    @property
+    def config(self) -> dict[str, Any]:
+        """The settings, as keyword arguments of ``Unshear(**config)``."""
+    @property
+    def max_pixels(self) -> int:
+        """The largest image accepted, in pixels."""
+    def estimate(self, image: Image, *, bgr: bool = False) -> Report:
+        """Finds the faces in ``image`` and estimates the shear from each.
+
+        Raises ``ValueError`` for an array that is not an image (wrong dtype, shape or channel
+        count, empty, over ``max_pixels``) and ``TypeError`` for a non-array.
+        """
+    def estimate_many(
+        self, images: Iterable[Image], *, threads: int | None = None, bgr: bool = False
+    ) -> list[Report]:
+        """``estimate`` on every image, in parallel on ``threads`` threads (default: one per
+        core); the reports come back in the images' order. Every image is copied first, so
+        memory grows with the batch."""
+    def correct(
+        self,
+        image: Image,
+        k: float | None = None,
+        *,
+        region: Region = "image",
+        canvas: Canvas = "same",
+        interp: Interp = "linear",
+        report: Report | None = None,
+        bgr: bool = False,
+    ) -> Image:
+        """Removes the shear from ``image`` and returns a new array of its layout and dtype.
+
+        The shear is ``k`` when given, otherwise ``report``'s (from ``estimate`` on this image,
+        to avoid estimating twice), otherwise estimated here. ``region="image"`` de-shears the
+        whole image about its middle row; ``"face"`` each face region with its own shear.
+        ``canvas``: ``"same"`` size, ``"expand"`` so nothing is cut off, or ``"crop"`` to valid
+        pixels. ``interp``: ``"linear"`` or ``"cubic"``.
+
+        Raises ``NoFaceError`` (a ``ValueError``) when no face gave an accepted estimate and no
+        ``k`` was given.
+        """
+
+@final
+class Frame:
+    """One frame out of a ``VideoCorrector``."""
+
+    @property
+    def image(self) -> Image:
+        """The frame, corrected by ``k_applied`` (in the layout and dtype it was pushed in)."""
+    @property
+    def index(self) -> int:
+        """The frame's number, from 0."""
+    @property
+    def k(self) -> float:
+        """The frame's temporally filtered and smoothed shear."""
+    @property
+    def k_raw(self) -> float | None:
+        """The frame's own estimate, ``None`` without a usable face."""
+    @property
+    def k_causal(self) -> float:
+        """The causal filter's shear after this frame (from it and earlier frames only)."""
+    @property
+    def k_applied(self) -> float | None:
+        """The shear the frame was corrected by; ``None`` with ``correct=False``."""
+    @property
+    def faces(self) -> list[Face]:
+        """Every tracked face with an estimate."""
+    def to_dict(self) -> dict[str, Any]:
+        """The frame's line of ``unshear video --json`` (``frame``, ``k_raw``, ``k``,
+        ``faces``), not rounded."""
+
+@final
+class VideoCorrector:
+    """A video stream corrected frame by frame, as ``unshear video`` does: faces tracked
+    between full detections, ``k`` filtered over time and smoothed over ``smoothing_lag`` later
+    frames.
+
+    ``push(frame)`` returns the frame that is now due, ``smoothing_lag`` frames older, as a
+    list of zero or one ``Frame``; ``finish()`` returns the frames still held.
+    ``smoothing_lag=0`` returns every frame at once (the causal filter alone). Every frame must
+    have the first one's size, channels and dtype. The settings of ``Unshear`` are accepted too
+    (``max_crops`` defaults to 2 and ``shear_model`` to equation5 here, as for ``unshear
+    video``).
+    """
+
+    def __new__(
+        cls,
+        *,
+        fps: float = 25.0,
+        smoothing_lag: int = 6,
+        redetect: int = 30,
+        lost_interval: int = 5,
+        detect_width: int = 640,
+        hold: float = 0.5,
+        decay: float = 1.0,
+        k_source: Literal["filtered", "raw"] = "filtered",
+        interp: Interp = "linear",
+        correct: bool = True,
+        bgr: bool = False,
+        max_pixels: int = ...,
+        locator: Locator = "network",
+        search: Search = "thorough",
+        min_confidence: float = 0.25,
+        max_crops: int | None = None,
+        refinements: int = 0,
+        shear_model: ShearModel | None = None,
+        filter_type: FilterType = "mosse",
+        min_face: int | None = None,
+        min_neighbors: int = 3,
+        scale_factor: float = 1.1,
+        proposals: bool = True,
+        fallback_cascade: bool = False,
+        search_every_view: bool = False,
+        shear_hypotheses: Iterable[float] | None = None,
+        roll_hypotheses: Iterable[float] | None = None,
+    ) -> VideoCorrector: ...
+    @property
+    def pending(self) -> int:
+        """Frames pushed and not returned yet."""
+    @property
+    def smoothing_lag(self) -> int:
+        """Each frame comes out this many pushes later."""
+    def push(self, frame: Image) -> list[Frame]:
+        """Takes the next frame; returns the frame now due, corrected (zero or one)."""
+    def finish(self) -> list[Frame]:
+        """Ends the stream: every frame still held, corrected. Later pushes raise."""
+
+def read(path: PathLike, *, bgr: bool = False, max_pixels: int = ...) -> Image:
+    """Reads an image file (JPEG, PNG, PNM, BMP, TIFF, WebP; the format from the content; the
+    EXIF orientation applied; the size checked before decoding) into an array: H x W for grey,
+    H x W x 2/3/4 otherwise, ``uint16`` for 16-bit files. Raises ``OSError`` (its subclasses
+    ``FileNotFoundError``, ``PermissionError``, ...) with the reason."""
+
+def write(
+    path: PathLike,
+    image: Image,
+    *,
+    bgr: bool = False,
+    overwrite: bool = True,
+    jpeg_quality: int = 95,
+) -> None:
+    """Writes ``image`` to ``path``, its format from the extension (``.jpg``, ``.png``,
+    ``.pgm``/``.ppm``, ``.bmp``, ``.tif``, ``.webp``), through a temporary file renamed into
+    place. ``overwrite=False`` raises ``FileExistsError`` for an existing file."""
+
+def distort(
+    image: Image,
+    k: float,
+    *,
+    pivot: float | None = None,
+    canvas: Canvas = "same",
+    interp: Interp = "linear",
+) -> Image:
+    """Applies a shear as a rolling shutter would: a point ``(x, y)`` moves to
+    ``x + k (y - pivot)`` (``pivot`` default: the middle row, ``H / 2``). ``distort(image,
+    -k)`` is ``Unshear.correct(image, k)``."""
