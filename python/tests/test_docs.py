@@ -34,6 +34,11 @@ def cv2_stand_in() -> types.ModuleType:
     return cv2
 
 
+def test_the_readme_shows_the_snippet() -> None:
+    readme = re.findall(r"```python\n(.*?)```", (ROOT / "README.md").read_text(), re.DOTALL)
+    assert readme and readme[0] == BLOCKS[0], "README's Python example is docs/python.md's first"
+
+
 def test_the_doc_has_the_readme_snippet() -> None:
     assert len(BLOCKS) >= 4
     snippet = BLOCKS[0].strip().splitlines()
