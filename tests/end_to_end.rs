@@ -309,34 +309,6 @@ fn searching_every_view_finds_a_second_face_sheared_beyond_the_cascade() {
 /// The size that no test image reaches: a detector whose smallest box is this cannot fire.
 const BLIND: (u32, u32) = (10_000, 10_000);
 
-/// A Haar cascade that never fires: its one stage's threshold is above what its one tree can
-/// give.
-const NEVER_FIRES: &str = r#"<?xml version="1.0"?>
-<opencv_storage>
-<cascade type_id="opencv-cascade-classifier"><stageType>BOOST</stageType>
-  <featureType>HAAR</featureType>
-  <height>4</height>
-  <width>4</width>
-  <stageParams><maxWeakCount>1</maxWeakCount></stageParams>
-  <featureParams><maxCatCount>0</maxCatCount></featureParams>
-  <stageNum>1</stageNum>
-  <stages>
-    <_>
-      <maxWeakCount>1</maxWeakCount>
-      <stageThreshold>2.0</stageThreshold>
-      <weakClassifiers>
-        <_>
-          <internalNodes>0 -1 0 0.25</internalNodes>
-          <leafValues>0 1</leafValues></_></weakClassifiers></_></stages>
-  <features>
-    <_>
-      <rects>
-        <_>0 0 2 4 1.</_>
-        <_>2 0 2 4 -1.</_></rects>
-      <tilted>0</tilted></_></features></cascade>
-</opencv_storage>
-"#;
-
 /// The fallback cascade is asked only when the main detector gives no accepted estimate: with a
 /// main detector that cannot fire (its smallest box is larger than the image), the fallback
 /// (`haarcascade_frontalface_default`) finds each fixture face, its box mapped onto alt2's
@@ -349,7 +321,10 @@ fn fallback_cascade_finds_what_the_main_detector_misses() {
     // The paper's filters and the quick search, with a main cascade that never fires.
     let blind = |fallback_cascade| {
         let mut models = unshear::Models::builtin(FilterType::DEFAULT).expect("built-in models");
-        models.cascade = Cascade::from_xml(NEVER_FIRES).expect("a valid cascade");
+        // One stage whose threshold is above what its one tree can give.
+        let never_fires = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/fixtures/never_fires_cascade.xml");
+        models.cascade = Cascade::from_file(&never_fires).expect("a valid cascade");
         let config = Config {
             locator: Locator::Filters,
             fallback_cascade,
