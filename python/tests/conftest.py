@@ -17,14 +17,16 @@ EXAMPLE = ROOT / "assets" / "example" / "face-k0.30.png"
 
 
 def cli_binary() -> Path | None:
-    """The `unshear` CLI: $UNSHEAR_BIN, else the one `cargo test` or `cargo build` left."""
+    """The `unshear` CLI: $UNSHEAR_BIN, else the newer of those `cargo test` (target/debug) and
+    `cargo build --release` left (an older one may predate the library the package was built
+    from), else one on PATH."""
     env = os.environ.get("UNSHEAR_BIN")
     if env:
         return Path(env)
-    for profile in ("release", "debug"):
-        candidate = ROOT / "target" / profile / "unshear"
-        if candidate.is_file():
-            return candidate
+    built = [ROOT / "target" / p / "unshear" for p in ("release", "debug")]
+    built = [p for p in built if p.is_file()]
+    if built:
+        return max(built, key=lambda p: p.stat().st_mtime)
     found = shutil.which("unshear")
     return Path(found) if found else None
 

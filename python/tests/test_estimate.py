@@ -68,8 +68,10 @@ def test_face_fields(corrector: unshear.Unshear) -> None:
     assert f.k == f.k_measured and 0.0 <= f.confidence <= 1.0
     assert f.face_score is not None and f.face_score > 0.9
     assert abs(f.roll) < 10
+    assert f.refused is None and not f.outvoted
+    assert not report.faces_disagree and isinstance(report.warnings, list)
     d = report.to_dict()
-    assert set(d) == {"k", "faces"}
+    assert set(d) == {"k", "faces", "faces_disagree", "warnings"}
     assert set(d["faces"][0]) == {
         "box",
         "right_eye",
@@ -82,6 +84,8 @@ def test_face_fields(corrector: unshear.Unshear) -> None:
         "k_measured",
         "roll",
         "confidence",
+        "refused",
+        "outvoted",
     }
     json.dumps(d)
     assert "k=0.31" in repr(report) and "Face(" in repr(f)
@@ -92,6 +96,7 @@ def test_refused_estimates_keep_their_measurement(face: np.ndarray) -> None:
     report = strict.estimate(face)
     assert report.k is None
     assert report.faces and all(f.k is None for f in report.faces)
+    assert report.faces[0].refused == "low_confidence"
     assert abs(report.faces[0].k_measured - 0.3) < 0.05
     with pytest.raises(unshear.NoFaceError):
         strict.correct(face)
