@@ -180,6 +180,10 @@ pub fn to_gray(img: &DynamicImage) -> GrayImage {
     }
 }
 
+/// The reason [`write_image_atomic`] gives when the output exists and may not be replaced
+/// ([`WriteOptions::overwrite`]).
+pub const EXISTS: &str = "it exists and replacing it was not asked for";
+
 /// How [`write_image_atomic`] may write.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct WriteOptions {
@@ -404,7 +408,7 @@ pub fn write_atomic(
         return Err(refuse("it is an input file"));
     }
     if !opts.overwrite && path.exists() {
-        return Err(refuse("it exists; use --force to replace it"));
+        return Err(refuse(EXISTS));
     }
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
@@ -429,7 +433,7 @@ pub fn write_atomic(
         // The check above is racy; persist_noclobber makes "never replace" hold for real.
         tmp.persist_noclobber(path).map_err(|e| {
             if e.error.kind() == std::io::ErrorKind::AlreadyExists {
-                refuse("it exists; use --force to replace it")
+                refuse(EXISTS)
             } else {
                 io_err(e.error)
             }
@@ -848,7 +852,7 @@ mod tests {
         write_image_atomic(&a, &path, WriteOptions::default()).unwrap();
         let err = write_image_atomic(&b, &path, WriteOptions::default()).unwrap_err();
         assert!(
-            matches!(&err, Error::Refused { reason, .. } if reason.contains("--force")),
+            matches!(&err, Error::Refused { reason, .. } if reason == EXISTS),
             "{err}"
         );
         assert_eq!(read_image(&path, 100).unwrap(), a);

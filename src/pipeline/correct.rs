@@ -42,7 +42,7 @@ impl Unshear {
             Region::Face => {
                 if report.faces.is_empty() {
                     return Err(Error::InvalidArgument(
-                        "no face found: --region face needs a detected face".into(),
+                        "no face found: a face-region correction needs a detected face".into(),
                     ));
                 }
                 let mut out = img.clone();

@@ -750,7 +750,7 @@ impl EncodePlan {
         if let Some(crf) = settings.crf {
             if !(crf.is_finite() && crf >= 0.0) {
                 return Err(Error::InvalidArgument(format!(
-                    "--crf {crf}: a number >= 0 is needed"
+                    "constant quality {crf}: a number >= 0 is needed"
                 )));
             }
         }

@@ -62,6 +62,17 @@ fn main() -> ExitCode {
     }
 }
 
+/// [`imageio::write_image_atomic`], with the flag that allows replacing an existing output named
+/// in its refusal.
+fn write_atomic(img: &image::DynamicImage, path: &Path, options: WriteOptions) -> Result<()> {
+    imageio::write_image_atomic(img, path, options).map_err(|e| match e {
+        unshear::Error::Refused { ref reason, .. } if reason == imageio::EXISTS => {
+            anyhow::anyhow!("{e}; use --force to replace it")
+        }
+        e => e.into(),
+    })
+}
+
 /// Prints a line to stdout, ignoring a closed pipe (e.g. `| head`) rather than panicking.
 fn print_line(line: &str) {
     let mut out = std::io::stdout().lock();
@@ -277,7 +288,7 @@ fn correct_one(
     if let Some(annotate) = &a.annotate {
         create_parent(annotate)?;
         let picture = unshear::annotate::draw_annotations(&img, &report.marks());
-        imageio::write_image_atomic(
+        write_atomic(
             &image::DynamicImage::ImageRgb8(picture),
             annotate,
             WriteOptions {
@@ -310,7 +321,7 @@ fn correct_one(
         std::fs::create_dir_all(parent)
             .with_context(|| format!("creating {}", parent.display()))?;
     }
-    imageio::write_image_atomic(
+    write_atomic(
         &fixed,
         &out,
         WriteOptions {
@@ -413,7 +424,7 @@ fn distort(a: DistortArgs) -> Result<()> {
         None => Shear::about_middle(a.k, img.height()),
     };
     let (out, _) = unshear::warp::try_apply_shear(&img, shear, a.interp.into(), a.canvas.into())?;
-    imageio::write_image_atomic(
+    write_atomic(
         &out,
         &a.output,
         WriteOptions {
