@@ -37,18 +37,18 @@ pub const FACE_WIDTH: f64 = 150.0;
 /// centres of 36-41 and 42-47): the nostrils lie 0.12-0.17 eye distances from the midline (the
 /// eyes 0.5), i.e. 0.35 inwards, and 0.70 below the eye line; the eye filter's response on them
 /// peaks a little lower, 0.74 (median on the Caltech development faces).
-pub const NOSTRIL_FROM_EYE: (f64, f64) = (0.35, 0.74);
+pub(crate) const NOSTRIL_FROM_EYE: (f64, f64) = (0.35, 0.74);
 /// Half-size of each nostril's search window, in eye distances: sideways under half the nostril
 /// spacing (0.26-0.3), so a window does not reach the other nostril; vertically the nose length
 /// varies more (pitch, the person).
-pub const NOSTRIL_SEARCH: (f64, f64) = (0.12, 0.18);
+pub(crate) const NOSTRIL_SEARCH: (f64, f64) = (0.12, 0.18);
 /// Where the nose filter is searched: below the eyes' midpoint by this many eye distances.
 /// Caltech development faces: the annotated nose point lies a median 0.29 box widths below the eye
 /// line, 0.76 eye distances.
 pub const NOSE_BELOW_EYES: f64 = 0.76;
 /// Half-size (eye distances) of the nose search window: sideways it must follow the nose under
 /// shear (`k * 0.76` eye distances: 0.45 covers |k| = 0.6), vertically nose length and pitch.
-pub const NOSE_SEARCH: (f64, f64) = (0.45, 0.15);
+pub(crate) const NOSE_SEARCH: (f64, f64) = (0.45, 0.15);
 /// Where the mouth filter is searched: below the eyes' midpoint by this many eye distances, in the
 /// face de-sheared by the nose's estimate. Caltech development faces (eye distance >= 20 px): the
 /// annotated mouth centre lies a median 1.10 eye distances below the eye line (std 0.15).
@@ -66,21 +66,21 @@ pub const MOUTH_BELOW_EYES: f64 = 1.10;
 /// 75 Yale images within 0.05 (55). An earlier release saw the same on its filters (0.18: 10
 /// fewer wrong of 469) but judged it noise; 0.12 then measured a test fixture 0.09 off at
 /// k = -0.4, so the window is not narrowed further.
-pub const MOUTH_SEARCH: (f64, f64) = (0.15, 0.25);
+pub(crate) const MOUTH_SEARCH: (f64, f64) = (0.15, 0.25);
 
 /// Sideways half-range (eye distances) of the nose search after the first pass, when the view
 /// is already de-sheared by an estimate: the residual is small, and a narrower window keeps the
 /// peak from jumping to the mouth corners or a cheek.
-pub const NOSE_RESIDUAL_SEARCH: f64 = 0.25;
+pub(crate) const NOSE_RESIDUAL_SEARCH: f64 = 0.25;
 /// Most passes of [`FeatureLocator::iterated_nose_shear`]. Each pass costs one 64x64
 /// correlation (about 40 us).
-pub const NOSE_ITERATIONS: usize = 8;
+pub(crate) const NOSE_ITERATIONS: usize = 8;
 /// The largest shear the nose iteration will move to. Rolling-shutter skew of a panning camera
 /// rarely exceeds |k| = 0.6; an iteration running past 0.8 has lost the nose, and stopping there
 /// keeps a lost face from producing an absurd estimate.
-pub const MAX_SHEAR: f64 = 0.8;
+pub(crate) const MAX_SHEAR: f64 = 0.8;
 /// Change in `k` below which the nose iteration stops.
-pub const NOSE_TOLERANCE: f64 = 0.002;
+pub(crate) const NOSE_TOLERANCE: f64 = 0.002;
 
 /// The mouth is searched where the nose's estimate of the shear puts it; when the peak found
 /// there lies on the search window's edge (the mouth is beyond the window) and the view the
@@ -92,7 +92,7 @@ pub const NOSE_TOLERANCE: f64 = 0.002;
 /// off had a nose estimate more than 0.12 off. Taking the sharper of the two peaks instead did
 /// better at k = 0 but pulled estimates towards the detection's view (see the README, *Beyond
 /// the paper*).
-pub const MOUTH_SECOND_VIEW_MIN_SHEAR: f64 = 0.03;
+pub(crate) const MOUTH_SECOND_VIEW_MIN_SHEAR: f64 = 0.03;
 
 /// The mouth is searched once more in its own view: the view de-sheared by the shear that puts
 /// the mouth found first straight below the eyes' midpoint (less the eye line's slope, a head's
@@ -103,7 +103,7 @@ pub const MOUTH_SECOND_VIEW_MIN_SHEAR: f64 = 0.03;
 /// estimate was within 0.05 of the truth but for 59-70% of those whose nose was 0.10-0.20 off.
 /// Searched again where it points itself, the mouth sees a nearly upright view and a window
 /// centred on it (see the README, *Beyond the paper*, for what this changed).
-pub const MOUTH_OWN_VIEW_MIN_SHEAR: f64 = 0.01;
+pub(crate) const MOUTH_OWN_VIEW_MIN_SHEAR: f64 = 0.01;
 
 /// Candidate positions per eye: the highest value of its filter's correlation in the search
 /// window and the highest local maxima after it. With the box drawn from the annotated eyes (scale and position jittered by
@@ -155,7 +155,7 @@ pub const EYE_PAIR_WEIGHTS: [f64; EYE_PAIR_FEATURES.len()] = crate::fitted::EYE_
 
 /// Side of the patches compared for the pair's symmetry (pixels of the 150-px face): 24, about
 /// the eye and its lids (the eye distance is about 57).
-pub const EYE_SYMMETRY_PATCH: usize = 24;
+pub(crate) const EYE_SYMMETRY_PATCH: usize = 24;
 
 /// Half-size of the eye search window (pixels of the normalised face). The detector's eye
 /// positions spread by 3.7-5.3 px (1 std) at 150 px; 14 px is about 3 std.
@@ -165,14 +165,14 @@ pub const EYE_SEARCH: (usize, usize) = (14, 12);
 /// canthus, paper Fig. 3), as a fraction of the eye distance. dlib markup: the inner canthus is
 /// 0.31 eye distances from the midline, the eye centre 0.5; the point between canthus and plica is
 /// taken at 0.28, i.e. 0.22 in from the centre.
-pub const EYE_TO_INNER_CANTHUS: f64 = 0.22;
+pub(crate) const EYE_TO_INNER_CANTHUS: f64 = 0.22;
 /// Offset from the detected nostril out to the alar side wall, as a fraction of the eye distance.
 /// dlib markup: the alae (31, 35) are 0.23-0.28 from the midline, the nostrils 0.12-0.17, so 0.10.
 /// Both offsets are mirror-symmetric, so they cancel in the two-sided average of equation 5; they
 /// only make each side's own estimate meaningful. Measured on unsheared Caltech development
 /// faces, one side alone still reads about +0.06 (the nose point sits slightly inside the eye
 /// point), which the other side's -0.06 cancels.
-pub const NOSTRIL_TO_ALAR: f64 = 0.10;
+pub(crate) const NOSTRIL_TO_ALAR: f64 = 0.10;
 
 /// Margins (normalised pixels) added around the face box when it is resampled: room for crops
 /// that reach past the box and for de-shearing up to |k| = 1 over the crop rows.
@@ -911,7 +911,7 @@ impl<'f> FeatureLocator<'f> {
     /// The shear measured from the nose in the view of the face de-sheared by `k_view` (about
     /// the eye row): the nose filter's peak against the eyes' midpoint (a vertical line of the
     /// upright face joins them), added to `k_view`. `wide` searches the whole sideways range
-    /// [`NOSE_SEARCH`]; otherwise the search is limited to [`NOSE_RESIDUAL_SEARCH`].
+    /// the nose search window; otherwise the search is limited to the residual search window.
     ///
     /// The eyes are given, and the nose returned, in normalised-face coordinates of the view.
     pub fn nose_shear(
@@ -953,8 +953,8 @@ impl<'f> FeatureLocator<'f> {
     }
 
     /// The nose's estimate of the shear, iterated: the nose is measured in the face de-sheared
-    /// by the current estimate until the estimate changes by less than [`NOSE_TOLERANCE`] (at
-    /// most [`NOSE_ITERATIONS`] passes).
+    /// by the current estimate until the estimate changes by less than a small tolerance (at
+    /// most a few passes).
     ///
     /// One pass alone reads only about 70% of the shear: the nose filter matches the whole
     /// 64x64 patch, whose upper part (the nose bridge, near the eye row) moves less under shear
