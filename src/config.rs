@@ -56,6 +56,23 @@ pub enum FaceSearch {
     Quick,
 }
 
+/// What finds the faces.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Detector {
+    /// One pass of the face proposal network (a small convolutional window classifier trained
+    /// on sheared and rolled faces) over an image pyramid, each window judged by the landmark
+    /// network's face score. Needs the network locator: with the filters, which cannot tell a
+    /// false window, the Viola-Jones search is used.
+    #[default]
+    Network,
+    /// The paper's Viola-Jones cascade, in the views [`Config::search`] chooses.
+    ViolaJones,
+}
+
+/// Default smallest face (box width, pixels) the network detector looks for.
+pub const DEFAULT_MIN_FACE: u32 = 40;
+
 /// What locates a face's features.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
 #[serde(rename_all = "lowercase")]
@@ -76,9 +93,13 @@ pub enum Locator {
 /// other presets.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Config {
+    /// What finds the faces.
+    pub detector: Detector,
+    /// Smallest face (box width, pixels) the network detector looks for.
+    pub min_face: u32,
     /// What locates the eyes, nose and mouth.
     pub locator: Locator,
-    /// How hard faces are searched for.
+    /// How hard the Viola-Jones detector searches for faces ([`Detector::ViolaJones`]).
     pub search: FaceSearch,
     /// Confidence (0 to 1) below which a face's estimate is refused (`k: None`).
     pub min_confidence: f64,
@@ -98,7 +119,7 @@ pub struct Config {
     /// own filters).
     pub filter_type: FilterType,
     /// The Viola-Jones detector's parameters (smallest face, neighbours, scale step).
-    pub detector: DetectorParams,
+    pub cascade: DetectorParams,
     /// Whether the thorough search adds the face proposal classifier's windows as candidates.
     pub proposals: bool,
     /// Whether OpenCV's `haarcascade_frontalface_default` is asked when the main cascade finds
@@ -118,6 +139,8 @@ pub struct Config {
 impl Default for Config {
     fn default() -> Self {
         Self {
+            detector: Detector::Network,
+            min_face: DEFAULT_MIN_FACE,
             locator: Locator::Network,
             search: FaceSearch::Thorough,
             min_confidence: DEFAULT_MIN_CONFIDENCE,
@@ -126,7 +149,7 @@ impl Default for Config {
             refinements: 0,
             shear_model: ShearModel::default(),
             filter_type: FilterType::DEFAULT,
-            detector: DetectorParams::default(),
+            cascade: DetectorParams::default(),
             proposals: true,
             fallback_cascade: false,
             search_every_view: false,
@@ -137,12 +160,24 @@ impl Default for Config {
 }
 
 impl Config {
-    /// The image as it is first; de-sheared and turned views only when it gives no trusted
-    /// face (the command line's `--quick`). Several times faster, and misses more sheared and
-    /// rolled faces.
+    /// The Viola-Jones cascade in the image as it is first; de-sheared and turned views only when
+    /// it gives no trusted face (the command line's `--detector viola-jones --quick`). Misses
+    /// more sheared and rolled faces than the other searches.
     pub fn quick() -> Self {
         Self {
+            detector: Detector::ViolaJones,
             search: FaceSearch::Quick,
+            ..Self::default()
+        }
+    }
+
+    /// The Viola-Jones cascade in every de-sheared and turned view of every image, with the
+    /// proposal classifier's windows added (the command line's `--detector viola-jones
+    /// --thorough`): the most thorough search and the slowest, by about 20 times.
+    pub fn thorough() -> Self {
+        Self {
+            detector: Detector::ViolaJones,
+            search: FaceSearch::Thorough,
             ..Self::default()
         }
     }
@@ -151,6 +186,7 @@ impl Config {
     /// filters (UMACE) for eyes and nostrils, and equation 5.
     pub fn paper() -> Self {
         Self {
+            detector: Detector::ViolaJones,
             locator: Locator::Filters,
             search: FaceSearch::Quick,
             shear_model: ShearModel::Equation5,
@@ -199,7 +235,10 @@ impl Config {
         if !(non_negative(b.shear_tolerance) && non_negative(b.roll_tolerance)) {
             return bad("the network budget's tolerances must be finite and >= 0".into());
         }
-        let d = &self.detector;
+        if self.min_face == 0 {
+            return bad("the smallest face must be at least 1 pixel wide".into());
+        }
+        let d = &self.cascade;
         if !(d.scale_factor.is_finite() && d.scale_factor > 1.0 && d.scale_factor <= 2.0) {
             return bad(format!(
                 "scale factor {} must be above 1 and at most 2",
@@ -241,6 +280,7 @@ mod tests {
     fn presets_are_valid_and_differ_where_documented() {
         for c in [
             Config::default(),
+            Config::thorough(),
             Config::quick(),
             Config::paper(),
             Config::video(),
@@ -281,7 +321,11 @@ mod tests {
                 ..Config::default()
             },
             Config {
-                detector: DetectorParams {
+                min_face: 0,
+                ..Config::default()
+            },
+            Config {
+                cascade: DetectorParams {
                     scale_factor: 1.0,
                     ..DetectorParams::default()
                 },

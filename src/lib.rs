@@ -73,7 +73,7 @@ mod testing;
 pub mod video;
 pub mod warp;
 
-pub use config::{Config, FaceSearch, Locator};
+pub use config::{Config, Detector, FaceSearch, Locator};
 pub use error::{Error, Result};
 pub use geometry::{Point, Rect, Shear};
 pub use pipeline::{

@@ -40,14 +40,14 @@ pub use search::{
 };
 
 use crate::config::Config;
-pub use crate::config::{FaceSearch, Locator};
+pub use crate::config::{Detector, FaceSearch, Locator};
 use crate::detect::{Cascade, FaceDetector, ProposalNet};
 use crate::error::Result;
 use crate::filters::{EyeFilters, FilterType};
 use crate::geometry::{Point, Rect};
 use crate::locate::network::LandmarkNet;
 use combine::most_confident_of_overlapping;
-use proposals::{proposal_detections, proposal_is_new, proposal_shows};
+use proposals::{proposal_detections, proposal_is_new, proposal_shows, scored_proposal_detections};
 use search::{
     overlapping_groups, tries_of_group, FallbackDetector, ThoroughDetectors,
     NEAR_MISS_MIN_FACE_SCORE, THOROUGH_MIN_NEIGHBORS, THOROUGH_ROLL_HYPOTHESES as THOROUGH_ROLLS,
@@ -96,7 +96,8 @@ pub struct Unshear {
     /// The lenient detectors of [`FaceSearch::Thorough`], when it is set (used with the network
     /// only).
     thorough: Option<ThoroughDetectors>,
-    /// The face proposal classifier of the thorough search, when [`Config::proposals`] is set.
+    /// The face proposal classifier: the network detector, or the thorough search's windows
+    /// when [`Config::proposals`] is set.
     proposals: Option<ProposalNet>,
 }
 
@@ -111,7 +112,7 @@ impl Unshear {
     /// ([`Config::validate`]).
     pub fn with_models(config: Config, models: Models) -> Result<Self> {
         config.validate()?;
-        let detector = FaceDetector::new(models.cascade, config.detector);
+        let detector = FaceDetector::new(models.cascade, config.cascade);
         let finite = |v: &[f64]| {
             v.iter()
                 .copied()
@@ -140,7 +141,7 @@ impl Unshear {
             let params = crate::detect::DetectorParams {
                 min_neighbors: THOROUGH_MIN_NEIGHBORS,
                 stage_slack: THOROUGH_STAGE_SLACK,
-                ..config.detector
+                ..config.cascade
             };
             let (w, h) = params.min_size;
             let views = crate::detect::DetectorParams {
@@ -161,7 +162,7 @@ impl Unshear {
         });
         let fallback = config
             .fallback_cascade
-            .then(|| FallbackDetector::frontal_face_default(config.detector));
+            .then(|| FallbackDetector::frontal_face_default(config.cascade));
         Ok(Self {
             detector,
             fallback,
@@ -170,7 +171,8 @@ impl Unshear {
             shear_hypotheses,
             roll_hypotheses,
             thorough,
-            proposals: config.proposals.then_some(models.proposals),
+            proposals: (config.proposals || config.detector == Detector::Network)
+                .then_some(models.proposals),
             config,
         })
     }
@@ -249,6 +251,33 @@ impl Unshear {
                 .any(|(_, r)| r.as_ref().is_some_and(|r| r.k.is_some()))
         };
         let mut all: Vec<(Rect, Option<FaceReport>)> = Vec::new();
+        if let Some(net) = self.network_detector() {
+            let env = |k: &str, d: f64| std::env::var(k).ok().and_then(|v| v.parse().ok()).unwrap_or(d);
+            let strong = env("UT_STRONG", 1e9) as f32;
+            let weak_score = env("UT_WEAK_SCORE", NEAR_MISS_MIN_FACE_SCORE);
+            let strong_score = env("UT_STRONG_SCORE", face::MIN_FACE_SCORE);
+            let params = crate::detect::ProposalParams {
+                min_logit: env("UT_MIN_LOGIT", 0.0) as f32,
+                max_proposals: env("UT_MAX", 64.0) as usize,
+                scale_step: env("UT_STEP", 1.25),
+                ..Default::default()
+            };
+            // Strongest window first, each judged against the faces found so far.
+            let min_width = f64::from(self.config.min_face);
+            for (d, logit) in scored_proposal_detections(net, gray, min_width, &params) {
+                if !proposal_is_new(&d, &all) {
+                    continue;
+                }
+                let needed = if logit >= strong { strong_score } else { weak_score };
+                let Some(r) = self.estimate_detection(gray, &d) else {
+                    continue;
+                };
+                if r.face_score.is_some_and(|s| s >= needed) && proposal_shows(&d, &r) {
+                    all.push((d.face_box, Some(r)));
+                }
+            }
+            return most_confident_of_overlapping(all);
+        }
         let thorough = self.thorough_detectors();
         if self.config.search_every_view || thorough.is_some() {
             // A face is the first of its group's boxes that the network takes for one: the
@@ -351,10 +380,20 @@ impl Unshear {
         most_confident_of_overlapping(all)
     }
 
+    /// The proposal network when it is the face detector ([`Detector::Network`] with the
+    /// network locator, which judges its windows).
+    pub(crate) fn network_detector(&self) -> Option<&ProposalNet> {
+        let network = self.config.detector == Detector::Network && self.locator() == Locator::Network;
+        self.proposals.as_ref().filter(|_| network)
+    }
+
     /// Says so when the image's shape keeps some of the search's views from being searched
     /// (see [`MAX_VIEW_PIXELS_RATIO`]): faces sheared or rolled beyond what the cascade
     /// tolerates may then be missed.
     fn shape_warnings(&self, width: u32, height: u32) -> Vec<String> {
+        if self.network_detector().is_some() {
+            return Vec::new();
+        }
         let skipped = self
             .every_view(false)
             .iter()

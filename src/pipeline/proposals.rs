@@ -74,13 +74,27 @@ pub(crate) fn proposal_detections(
     gray: &GrayImage,
     min_width: f64,
 ) -> Vec<Detection> {
+    scored_proposal_detections(net, gray, min_width, &ProposalParams::default())
+        .into_iter()
+        .map(|(d, _)| d)
+        .collect()
+}
+
+/// [`proposal_detections`] with `params` (its smallest eye distance set from `min_width`), each
+/// with the classifier's logit.
+pub(crate) fn scored_proposal_detections(
+    net: &ProposalNet,
+    gray: &GrayImage,
+    min_width: f64,
+    params: &ProposalParams,
+) -> Vec<(Detection, f32)> {
     let params = ProposalParams {
         min_eye_distance: min_width * EYE_DISTANCE_PER_BOX_WIDTH,
-        ..ProposalParams::default()
+        ..*params
     };
     net.propose(gray, &params)
         .into_iter()
-        .map(|p| proposal_detection(p.eyes_midpoint, p.eye_distance))
+        .map(|p| (proposal_detection(p.eyes_midpoint, p.eye_distance), p.logit))
         .collect()
 }
 

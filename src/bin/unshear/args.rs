@@ -137,15 +137,24 @@ pub struct ModelArgs {
     /// No turned views for rolled heads (the de-sheared views are still searched).
     #[arg(help_heading = "Face search", hide_short_help = true, long)]
     pub no_roll_search: bool,
-    /// Quick face search: other views only when the image as it is shows no trusted face.
+    /// What finds the faces: `network` (one pass of the built-in detector trained on sheared
+    /// and rolled faces) or `viola-jones` (the paper's cascade; with --thorough in every view).
     ///
-    /// The image as it is, and the de-sheared and turned views only when it gives no trusted
-    /// face. On a 1920x1080 frame with a face 5.7 to 8.7 times faster than
-    /// the default thorough search (every view of every image, heads rolled up to about 55
-    /// degrees, the network judging lenient detections and the detector's near misses), about as
-    /// slow on one without; the thorough search finds about 4% more faces (docs/accuracy.md,
-    /// docs/performance.md).
-    #[arg(help_heading = "Face search", long)]
+    /// `network`: the face proposal network over an image pyramid, each window judged by the
+    /// landmark network (needs `--locator network`). `viola-jones`: the paper's cascade on the
+    /// image as it is, and de-sheared and turned views only when it shows no trusted face;
+    /// with --thorough in every view of every image, about 20 times slower than `network`
+    /// (docs/performance.md) [default: network; viola-jones with --locator filters, --quick
+    /// or --thorough].
+    #[arg(help_heading = "Face search", long, value_enum, value_name = "DETECTOR")]
+    pub detector: Option<DetectorArg>,
+    /// The Viola-Jones search in every de-sheared and turned view of every image, with the
+    /// proposal windows added (implies --detector viola-jones): the most thorough and slowest.
+    #[arg(help_heading = "Face search", long, conflicts_with = "quick")]
+    pub thorough: bool,
+    /// The Viola-Jones search in the image as it is, other views only when it shows no trusted
+    /// face (the same as --detector viola-jones).
+    #[arg(help_heading = "Face search", hide_short_help = true, long)]
     pub quick: bool,
     /// No face proposals: the thorough search takes candidate boxes from the cascade only,
     /// not also from the built-in window classifier trained on sheared faces (docs/how-it-works.md). --quick uses none anyway.
@@ -176,9 +185,10 @@ pub struct ModelArgs {
     pub fallback_cascade: bool,
     /// Smallest face to look for, pixels wide (larger is faster).
     ///
-    /// The detector's minimum box width and height, in pixels [default: the cascade's window, 20 px, as OpenCV; `eval shear`: 1.5 times
-    /// --min-eye-distance]. Larger is faster: most of the detector's time goes to the smallest
-    /// boxes, and faces under about 60 px are too small to measure the shear well anyway.
+    /// The detector's minimum box width and height, in pixels [default: 40 for the network
+    /// detector; for viola-jones the cascade's window, 20 px, as OpenCV; `eval shear`: 1.5
+    /// times --min-eye-distance]. Larger is faster: most of the detector's time goes to the
+    /// smallest faces, and faces under about 60 px are too small to measure the shear well.
     #[arg(help_heading = "Face search", long, value_name = "PX")]
     pub min_face: Option<u32>,
     /// The detector's minimum of merged raw hits for a face (OpenCV's `minNeighbors`): lower
@@ -220,6 +230,24 @@ impl From<LocatorArg> for unshear::pipeline::Locator {
         match l {
             LocatorArg::Network => Self::Network,
             LocatorArg::Filters => Self::Filters,
+        }
+    }
+}
+
+/// `--detector` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum DetectorArg {
+    /// The built-in face detector network.
+    Network,
+    /// The Viola-Jones cascade (the paper's method).
+    ViolaJones,
+}
+
+impl From<DetectorArg> for unshear::Detector {
+    fn from(d: DetectorArg) -> Self {
+        match d {
+            DetectorArg::Network => Self::Network,
+            DetectorArg::ViolaJones => Self::ViolaJones,
         }
     }
 }

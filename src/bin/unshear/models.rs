@@ -5,20 +5,37 @@ use anyhow::{Context, Result};
 use unshear::detect::{Cascade, DetectorParams, ProposalNet};
 use unshear::filters::{EyeFilters, FilterType};
 use unshear::locate::network::LandmarkNet;
-use unshear::{Config, FaceSearch, Models, Unshear};
+use unshear::{Config, Detector, FaceSearch, Models, Unshear};
 
-use crate::args::ModelArgs;
+use crate::args::{LocatorArg, ModelArgs};
 use crate::usage_error;
 
 /// `base` (the stills' default, or video's) with the flags of `m` applied.
 pub fn config_from(m: &ModelArgs, base: Config) -> Config {
     let defaults = DetectorParams::default();
     let min_face = m.min_face.unwrap_or(0);
+    // Flags of the Viola-Jones search choose it; so do the filters, which cannot judge the
+    // network detector's windows.
+    let viola_jones_flags = m.quick
+        || m.thorough
+        || m.no_shear_search
+        || m.shear_hypotheses.is_some()
+        || m.roll_hypotheses.is_some()
+        || m.fallback_cascade
+        || m.search_every_view
+        || m.locator == Some(LocatorArg::Filters);
+    let detector = match m.detector {
+        Some(d) => d.into(),
+        None if viola_jones_flags => Detector::ViolaJones,
+        None => base.detector,
+    };
     let mut c = Config {
-        search: if m.quick || m.no_shear_search {
-            FaceSearch::Quick
-        } else {
+        detector,
+        min_face: m.min_face.unwrap_or(base.min_face),
+        search: if m.thorough && !m.no_shear_search {
             FaceSearch::Thorough
+        } else {
+            FaceSearch::Quick
         },
         min_confidence: m.min_confidence,
         max_shear: m.max_shear,
@@ -33,7 +50,7 @@ pub fn config_from(m: &ModelArgs, base: Config) -> Config {
         },
         fallback_cascade: m.fallback_cascade && !m.no_shear_search,
         filter_type: m.filter_type.map_or(base.filter_type, FilterType::from),
-        detector: DetectorParams {
+        cascade: DetectorParams {
             min_size: (min_face, min_face),
             min_neighbors: m.min_neighbors.unwrap_or(defaults.min_neighbors),
             scale_factor: m.scale_factor.unwrap_or(defaults.scale_factor),
