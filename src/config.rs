@@ -73,6 +73,9 @@ pub enum Detector {
 /// Default smallest face (box width, pixels) the network detector looks for.
 pub const DEFAULT_MIN_FACE: u32 = 40;
 
+/// The smallest face (box width, pixels) the network detector can see: its window's own scale.
+pub const MIN_NETWORK_FACE: u32 = 24;
+
 /// What locates a face's features.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
 #[serde(rename_all = "lowercase")]
@@ -95,7 +98,8 @@ pub enum Locator {
 pub struct Config {
     /// What finds the faces.
     pub detector: Detector,
-    /// Smallest face (box width, pixels) the network detector looks for.
+    /// Smallest face (box width, pixels) the network detector looks for; below
+    /// [`MIN_NETWORK_FACE`] (0 included) it looks from there.
     pub min_face: u32,
     /// What locates the eyes, nose and mouth.
     pub locator: Locator,
@@ -235,9 +239,6 @@ impl Config {
         if !(non_negative(b.shear_tolerance) && non_negative(b.roll_tolerance)) {
             return bad("the network budget's tolerances must be finite and >= 0".into());
         }
-        if self.min_face == 0 {
-            return bad("the smallest face must be at least 1 pixel wide".into());
-        }
         let d = &self.cascade;
         if !(d.scale_factor.is_finite() && d.scale_factor > 1.0 && d.scale_factor <= 2.0) {
             return bad(format!(
@@ -318,10 +319,6 @@ mod tests {
                     max_passes: 0,
                     ..Budget::STILL
                 },
-                ..Config::default()
-            },
-            Config {
-                min_face: 0,
                 ..Config::default()
             },
             Config {

@@ -172,7 +172,11 @@ fn shear_hypotheses_choose_the_views_searched() {
     let img = distorted(dir.path(), 0.7);
     // 0.7 is beyond the default plausible bound (0.6): raised here, where the views are tested.
     let k_with = |options: &[&str]| {
-        let with_bound: Vec<&str> = options.iter().copied().chain(["--max-shear=0.8"]).collect();
+        let with_bound: Vec<&str> = options
+            .iter()
+            .copied()
+            .chain(["--max-shear=0.8", "--thorough"])
+            .collect();
         estimate_json(&img, &with_bound)["k"].as_f64()
     };
     assert_eq!(k_with(&["--no-shear-search"]), None);
@@ -193,7 +197,7 @@ fn shear_hypotheses_choose_the_views_searched() {
     let k = k_with(&["--shear-hypotheses=0.7"]).expect("found in the de-sheared view");
     assert!((k - 0.7).abs() <= 0.05, "{k}");
     // At the default bound the same face is measured and refused as implausible.
-    let refused = estimate_json(&img, &["--shear-hypotheses=0.7"]);
+    let refused = estimate_json(&img, &["--shear-hypotheses=0.7", "--thorough"]);
     assert!(refused["k"].is_null(), "{refused}");
     assert_eq!(
         refused["faces"][0]["refused"], "implausible_shear",

@@ -219,14 +219,14 @@ fn de_sheared_detection_finds_faces_the_single_pass_misses() {
         let default = built(Config {
             locator,
             max_shear: 0.8,
-            ..Config::default()
+            ..Config::thorough()
         });
         let single_pass = built(Config {
             locator,
             search: FaceSearch::Quick,
             shear_hypotheses: Some(Vec::new()),
             roll_hypotheses: Some(Vec::new()),
-            ..Config::default()
+            ..Config::thorough()
         });
         for (name, k) in cases {
             let img = sheared(&load(&dir.join(name)), k);
@@ -263,7 +263,7 @@ fn searching_every_view_finds_a_second_face_sheared_beyond_the_cascade() {
                 locator,
                 search,
                 search_every_view,
-                ..Config::default()
+                ..Config::thorough()
             })
         };
         let found = with(FaceSearch::Quick, false).estimate_gray(&pair);
@@ -361,11 +361,11 @@ fn face_proposals_find_what_the_cascade_misses() {
     let blind = |proposals| {
         built(Config {
             proposals,
-            detector: unshear::detect::DetectorParams {
+            cascade: unshear::detect::DetectorParams {
                 min_size: BLIND,
                 ..Default::default()
             },
-            ..Config::default()
+            ..Config::thorough()
         })
     };
     let (without, with) = (blind(false), blind(true));
@@ -526,13 +526,15 @@ fn the_thorough_search_reports_no_false_faces() {
         image::Luma([(state >> 24) as u8])
     });
     let blurred = image::imageops::blur(&noise, 3.0);
-    let unshear = Unshear::new(unshear::Config::default()).expect("built-in models");
-    for (what, frame, faces) in [
-        ("wall", &wall, 1),
-        ("noise", &noise, 0),
-        ("blurred noise", &blurred, 0),
-    ] {
-        let found = unshear.estimate_gray(frame).faces;
-        assert_eq!(found.len(), faces, "{what}: {found:?}");
+    for config in [Config::default(), Config::thorough()] {
+        let unshear = built(config.clone());
+        for (what, frame, faces) in [
+            ("wall", &wall, 1),
+            ("noise", &noise, 0),
+            ("blurred noise", &blurred, 0),
+        ] {
+            let found = unshear.estimate_gray(frame).faces;
+            assert_eq!(found.len(), faces, "{:?} {what}: {found:?}", config.detector);
+        }
     }
 }

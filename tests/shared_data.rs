@@ -63,7 +63,8 @@ fn caltech_slice_tracks_the_shear() {
     // The built-in models and search, with the smallest box `unshear eval shear` uses for
     // these faces (1.5 times the 40 px eye distance).
     let unshear = Unshear::new(unshear::Config {
-        detector: DetectorParams {
+        min_face: 60,
+        cascade: DetectorParams {
             min_size: (60, 60),
             ..DetectorParams::default()
         },
@@ -74,6 +75,7 @@ fn caltech_slice_tracks_the_shear() {
         shears: vec![0.0, 0.3],
         max_pixels: unshear::imageio::DEFAULT_MAX_PIXELS,
         also_annotated: Vec::new(),
+        face_free: false,
     };
     // Each image cropped to its faces' surroundings, as `unshear eval shear` does (whole photos
     // of up to 2300 px took four minutes here).

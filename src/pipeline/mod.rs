@@ -31,6 +31,7 @@ mod tests;
 use image::{DynamicImage, GrayImage};
 
 pub use combine::{combined_shear, consensus, Consensus, FACE_UNCERTAINTY};
+pub use proposals::{box_from_eyes, follows};
 pub use correct::FACE_REGION_MARGIN;
 pub use face::FaceStart;
 pub use report::{CorrectOptions, FaceReport, ImageReport, Refusal, Region};
@@ -45,9 +46,9 @@ use crate::detect::{Cascade, FaceDetector, ProposalNet};
 use crate::error::Result;
 use crate::filters::{EyeFilters, FilterType};
 use crate::geometry::{Point, Rect};
-use crate::locate::network::LandmarkNet;
+use crate::locate::network::{Budget, LandmarkNet};
 use combine::most_confident_of_overlapping;
-use proposals::{proposal_detections, proposal_is_new, proposal_shows, scored_proposal_detections};
+use proposals::{network_windows, proposal_detections, proposal_is_new, proposal_shows, window_is_face};
 use search::{
     overlapping_groups, tries_of_group, FallbackDetector, ThoroughDetectors,
     NEAR_MISS_MIN_FACE_SCORE, THOROUGH_MIN_NEIGHBORS, THOROUGH_ROLL_HYPOTHESES as THOROUGH_ROLLS,
@@ -252,30 +253,10 @@ impl Unshear {
         };
         let mut all: Vec<(Rect, Option<FaceReport>)> = Vec::new();
         if let Some(net) = self.network_detector() {
-            let env = |k: &str, d: f64| std::env::var(k).ok().and_then(|v| v.parse().ok()).unwrap_or(d);
-            let strong = env("UT_STRONG", 1e9) as f32;
-            let weak_score = env("UT_WEAK_SCORE", NEAR_MISS_MIN_FACE_SCORE);
-            let strong_score = env("UT_STRONG_SCORE", face::MIN_FACE_SCORE);
-            let params = crate::detect::ProposalParams {
-                min_logit: env("UT_MIN_LOGIT", 0.0) as f32,
-                max_proposals: env("UT_MAX", 64.0) as usize,
-                scale_step: env("UT_STEP", 1.25),
-                ..Default::default()
-            };
-            // Strongest window first, each judged against the faces found so far.
             let min_width = f64::from(self.config.min_face);
-            for (d, logit) in scored_proposal_detections(net, gray, min_width, &params) {
-                if !proposal_is_new(&d, &all) {
-                    continue;
-                }
-                let needed = if logit >= strong { strong_score } else { weak_score };
-                let Some(r) = self.estimate_detection(gray, &d) else {
-                    continue;
-                };
-                if r.face_score.is_some_and(|s| s >= needed) && proposal_shows(&d, &r) {
-                    all.push((d.face_box, Some(r)));
-                }
-            }
+            let windows = network_windows(net, gray, min_width);
+            let budget = self.config.network_budget;
+            self.judge_windows(gray, windows, 0.0, budget, &mut all);
             return most_confident_of_overlapping(all);
         }
         let thorough = self.thorough_detectors();
@@ -378,6 +359,78 @@ impl Unshear {
             }
         }
         most_confident_of_overlapping(all)
+    }
+
+    /// Judges the network detector's `windows` in `gray`, strongest first, each against the
+    /// faces in `found` so far (a window on a face already found is skipped): the landmark
+    /// network, started from the window with shear `start_k` and `budget`, must find a face
+    /// there ([`window_is_face`]) and where the window expects it ([`proposal_shows`]). The
+    /// faces found join `found`.
+    pub(crate) fn judge_windows(
+        &self,
+        gray: &GrayImage,
+        windows: Vec<(Detection, f32)>,
+        start_k: f64,
+        budget: Budget,
+        found: &mut Vec<(Rect, Option<FaceReport>)>,
+    ) {
+        for (d, logit) in windows {
+            if !proposal_is_new(&d, found) {
+                continue;
+            }
+            let start = FaceStart {
+                k: start_k + d.view_k,
+                roll: d.view_roll,
+                budget: Some(budget),
+            };
+            let Some(r) = self.estimate_face(gray, d.face_box, start) else {
+                continue;
+            };
+            if window_is_face(logit, &r) && proposal_shows(&d, &r) {
+                found.push((d.face_box, Some(r)));
+            }
+        }
+    }
+
+    /// Whether the network detector finds the faces ([`Detector::Network`] with the network
+    /// locator).
+    pub fn uses_network_detector(&self) -> bool {
+        self.network_detector().is_some()
+    }
+
+    /// Adds to `found` the faces the network detector finds in `gray` (shrunk to at most
+    /// `detect_width` columns for the detector; 0: as it is) that `found` lacks, each judged by
+    /// the landmark network at full resolution started from the shear `start_k` with
+    /// `budget`. Nothing without the network detector.
+    pub(crate) fn find_new_faces(
+        &self,
+        gray: &GrayImage,
+        detect_width: u32,
+        start_k: f64,
+        budget: Budget,
+        found: &mut Vec<(Rect, Option<FaceReport>)>,
+    ) {
+        let Some(net) = self.network_detector() else {
+            return;
+        };
+        let (w, h) = gray.dimensions();
+        let min_width = f64::from(self.config.min_face);
+        let windows = if detect_width > 0 && w > detect_width {
+            let scale = f64::from(w) / f64::from(detect_width);
+            let sh = ((f64::from(h) / scale).round() as u32).max(1);
+            let shrunk = image::imageops::thumbnail(gray, detect_width, sh);
+            network_windows(net, &shrunk, min_width / scale)
+                .into_iter()
+                .map(|(mut d, logit)| {
+                    let b = d.face_box;
+                    d.face_box = Rect::new(b.x * scale, b.y * scale, b.width * scale, b.height * scale);
+                    (d, logit)
+                })
+                .collect()
+        } else {
+            network_windows(net, gray, min_width)
+        };
+        self.judge_windows(gray, windows, start_k, budget, found);
     }
 
     /// The proposal network when it is the face detector ([`Detector::Network`] with the

@@ -6,7 +6,9 @@ use image::GrayImage;
 
 use super::combine::holds_eyes;
 use super::report::FaceReport;
-use super::search::Detection;
+use super::face::MIN_FACE_SCORE;
+use super::search::{Detection, NEAR_MISS_MIN_FACE_SCORE};
+use crate::config::MIN_NETWORK_FACE;
 use crate::detect::boxes::{box_around_eyes, eyes_in_box, EYE_DISTANCE_PER_BOX_WIDTH};
 use crate::detect::{ProposalNet, ProposalParams};
 use crate::geometry::{Point, Rect};
@@ -80,6 +82,33 @@ pub(crate) fn proposal_detections(
         .collect()
 }
 
+/// The window logit from which the network detector's window needs only the landmark network's
+/// usual face score ([`MIN_FACE_SCORE`]); weaker windows need [`NEAR_MISS_MIN_FACE_SCORE`], as
+/// the cascade's near misses do.
+pub(crate) const STRONG_WINDOW_LOGIT: f32 = 4.0;
+
+/// Whether the face the landmark network found from a window of the network detector with
+/// `logit` is a face: both networks' words together (see [`STRONG_WINDOW_LOGIT`]).
+pub(crate) fn window_is_face(logit: f32, face: &FaceReport) -> bool {
+    let needed = if logit >= STRONG_WINDOW_LOGIT {
+        MIN_FACE_SCORE
+    } else {
+        NEAR_MISS_MIN_FACE_SCORE
+    };
+    face.face_score.is_some_and(|s| s >= needed)
+}
+
+/// The network detector's windows in `gray` for faces at least `min_width` pixels wide
+/// (not below [`MIN_NETWORK_FACE`]), strongest first, each with its logit.
+pub(crate) fn network_windows(
+    net: &ProposalNet,
+    gray: &GrayImage,
+    min_width: f64,
+) -> Vec<(Detection, f32)> {
+    let min_width = min_width.max(f64::from(MIN_NETWORK_FACE));
+    scored_proposal_detections(net, gray, min_width, &ProposalParams::default())
+}
+
 /// [`proposal_detections`] with `params` (its smallest eye distance set from `min_width`), each
 /// with the classifier's logit.
 pub(crate) fn scored_proposal_detections(
@@ -109,4 +138,30 @@ pub(crate) fn proposal_detection(eyes: Point, eye_distance: f64) -> Detection {
         neighbors: 0,
         near_miss: true,
     }
+}
+
+/// The box the landmark network is started from to follow `face` into the next video frame:
+/// the detector's upright box around its eyes (started upright, the network measures the roll
+/// itself; started at the last roll, its per-frame estimates were twice as noisy).
+pub fn box_from_eyes(face: &FaceReport) -> Rect {
+    let width = face.right_eye.distance(face.left_eye) / EYE_DISTANCE_PER_BOX_WIDTH;
+    box_around_eyes(face.right_eye.midpoint(face.left_eye), width, width, 0.0)
+}
+
+/// How far (in its eye distances) a face may move from one video frame to the next and still
+/// be the face followed; and how much its eye distance may change.
+const FOLLOW_MAX_MOVE: f64 = 1.0;
+const FOLLOW_MAX_SCALE: f64 = 1.5;
+
+/// Whether `next`, located from `last`'s eyes in the next frame, is still that face: its eyes'
+/// midpoint within [`FOLLOW_MAX_MOVE`] eye distances of the last one and its eye distance
+/// within [`FOLLOW_MAX_SCALE`] of it (the network can walk from a face that left to another).
+pub fn follows(last: &FaceReport, next: &FaceReport) -> bool {
+    let d = last.right_eye.distance(last.left_eye);
+    let moved = next
+        .right_eye
+        .midpoint(next.left_eye)
+        .distance(last.right_eye.midpoint(last.left_eye));
+    let ratio = next.right_eye.distance(next.left_eye) / d;
+    moved <= FOLLOW_MAX_MOVE * d && ratio.ln().abs() <= FOLLOW_MAX_SCALE.ln()
 }

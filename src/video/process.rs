@@ -91,6 +91,10 @@ pub struct FrameResult {
 pub struct VideoProcessor<'a> {
     unshear: &'a Unshear,
     tracker: FaceTracker,
+    /// With the network detector: the faces of the last frame, which the landmark network
+    /// follows into the next, and the work done.
+    followed: Vec<FaceReport>,
+    network_stats: TrackerStats,
     smoother: ShearSmoother,
     options: ProcessOptions,
     next_index: u64,
@@ -104,6 +108,8 @@ impl<'a> VideoProcessor<'a> {
         Self {
             unshear,
             tracker: FaceTracker::new(unshear.detector().clone(), options.tracker),
+            followed: Vec::new(),
+            network_stats: TrackerStats::default(),
             smoother: ShearSmoother::new(options.filter, options.smoothing_lag),
             options,
             next_index: 0,
@@ -113,7 +119,11 @@ impl<'a> VideoProcessor<'a> {
 
     /// The tracker's work counts.
     pub fn tracker_stats(&self) -> TrackerStats {
-        self.tracker.stats()
+        if self.unshear.uses_network_detector() {
+            self.network_stats
+        } else {
+            self.tracker.stats()
+        }
     }
 
     /// Estimates rejected by the filter so far.
@@ -133,9 +143,13 @@ impl<'a> VideoProcessor<'a> {
         // Start from the causal filtered shear: the face is then searched for, and its
         // features located, in a nearly upright view.
         let view_k = self.smoother.filter().k();
-        let boxes = self.tracker.track(gray, view_k);
         let unshear = self.unshear;
         let budget = self.options.network_budget;
+        if unshear.uses_network_detector() {
+            let faces = self.follow_and_detect(gray, view_k);
+            return self.finish_analysis(faces);
+        }
+        let boxes = self.tracker.track(gray, view_k);
         let estimate = |&b: &Rect| {
             unshear.estimate_face(
                 gray,
@@ -152,6 +166,63 @@ impl<'a> VideoProcessor<'a> {
         } else {
             boxes.iter().filter_map(estimate).collect()
         };
+        self.finish_analysis(faces)
+    }
+
+    /// With the network detector: the faces of the last frame followed into this one by the
+    /// landmark network, each started from its last eyes, roll and the filtered shear
+    /// `view_k`; and on the frames where detection is due (see [`TrackerParams`]: every
+    /// `redetect_interval` frames, every `lost_interval` while no face is followed) the faces
+    /// the detector finds in the frame shrunk to `detect_width` columns that are not followed
+    /// yet.
+    fn follow_and_detect(&mut self, gray: &GrayImage, view_k: f64) -> Vec<FaceReport> {
+        let unshear = self.unshear;
+        let budget = self.options.network_budget;
+        let stats = &mut self.network_stats;
+        let frame = stats.frames;
+        stats.frames += 1;
+        let follow = |last: &FaceReport| {
+            let start = FaceStart {
+                k: view_k,
+                roll: 0.0,
+                budget: Some(budget),
+            };
+            let face_box = crate::pipeline::box_from_eyes(last);
+            unshear
+                .estimate_face(gray, face_box, start)
+                .filter(|r| crate::pipeline::follows(last, r))
+                .map(|r| (face_box, Some(r)))
+        };
+        let before = self.followed.len();
+        let mut found: Vec<(Rect, Option<FaceReport>)> = if before > 1 {
+            self.followed.par_iter().filter_map(follow).collect()
+        } else {
+            self.followed.iter().filter_map(follow).collect()
+        };
+        stats.local_searches += before as u64;
+        stats.lost += (before - found.len()) as u64;
+        let params = self.options.tracker;
+        let interval = if found.is_empty() {
+            params.lost_interval
+        } else {
+            params.redetect_interval
+        };
+        if frame % interval.max(1) == 0 || (before > 0 && found.is_empty()) {
+            stats.full_detections += 1;
+            unshear.find_new_faces(gray, params.detect_width, view_k, budget, &mut found);
+        }
+        let mut faces: Vec<FaceReport> = found.into_iter().filter_map(|(_, r)| r).collect();
+        faces.sort_by(|a, b| {
+            let size = |f: &FaceReport| f.right_eye.distance(f.left_eye);
+            size(b).total_cmp(&size(a))
+        });
+        faces.truncate(params.max_faces);
+        self.followed = faces.clone();
+        faces
+    }
+
+    /// Filters the frame's shear from its `faces` and makes its result.
+    fn finish_analysis(&mut self, faces: Vec<FaceReport>) -> (FrameResult, Option<f64>) {
         let k_raw = combined_shear(&faces);
         let (update, due) = self.smoother.push(k_raw);
         let index = self.next_index;

@@ -462,6 +462,11 @@ pub struct EvalShearArgs {
     /// shearing (speed; 0: shear the whole image).
     #[arg(long, value_name = "F", default_value_t = unshear::dev::eval::shear::DEFAULT_CONTEXT)]
     pub context: f64,
+    /// Also run each whole photo once with its annotated faces painted over, and count the
+    /// photos where a face is still reported and accepted (false faces, or faces the
+    /// annotations leave out).
+    #[arg(long)]
+    pub face_free: bool,
     #[command(flatten)]
     pub model: ModelArgs,
 }
@@ -556,14 +561,17 @@ pub struct VideoArgs {
     /// Row resampling.
     #[arg(long, value_enum, default_value_t = InterpArg::Linear)]
     pub interp: InterpArg,
-    /// Full face detection every N frames (faces are tracked in between).
-    #[arg(long, value_name = "N", default_value_t = 30)]
-    pub redetect: u64,
+    /// Full face detection every N frames (faces are tracked in between) [default: 5 with
+    /// the network detector, so that a face entering the frame is found within 5 frames; 30
+    /// with viola-jones].
+    #[arg(long, value_name = "N")]
+    pub redetect: Option<u64>,
     /// While no face is tracked, full detection every N frames.
     #[arg(long, value_name = "N", default_value_t = 5)]
     pub lost_interval: u64,
     /// Full detection on the frame shrunk to at most this width (0: full size; smallest face
-    /// found: 20 * width / PX pixels).
+    /// found: about 24 * width / PX pixels with the network detector, 20 * width / PX with
+    /// viola-jones).
     #[arg(long, value_name = "PX", default_value_t = 640)]
     pub detect_width: u32,
     /// Smooth k over this many later frames (a fixed-lag smoother): each frame is corrected

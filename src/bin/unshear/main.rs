@@ -508,6 +508,7 @@ fn eval_shear(a: EvalShearArgs) -> Result<()> {
         shears: a.k.clone(),
         max_pixels: a.model.max_pixels,
         also_annotated,
+        face_free: a.face_free,
     };
     let bar = progress_bar((faces.len() * a.k.len()) as u64);
     let result = evaluate_shear_in_context(&unshear, &faces, &options, a.context, || bar.inc(1));

@@ -20,6 +20,10 @@ use serde::Serialize;
 use crate::args::{ChromaArg, KSourceArg, VideoArgs};
 use crate::ffmpeg::{PendingDecoder, PendingEncoder, TempOutput, Tools};
 use crate::models::load_models;
+
+/// Frames between the network detector's full detections by default: it is cheap enough to
+/// find a face entering the frame within a few frames (the cascade's default is 30).
+const NETWORK_REDETECT_INTERVAL: u64 = 5;
 use crate::report::{face, r4, JsonFace};
 use crate::{interrupt, usage_error};
 use unshear::imageio::WriteOptions;
@@ -306,7 +310,7 @@ pub fn video(a: VideoArgs) -> Result<()> {
     if !(a.fps.is_finite() && a.fps > 0.0) {
         usage_error("--fps must be a positive number");
     }
-    if a.redetect == 0 || a.lost_interval == 0 {
+    if a.redetect == Some(0) || a.lost_interval == 0 {
         usage_error("--redetect and --lost-interval must be at least 1");
     }
     if a.smoothing_lag > MAX_SMOOTHING_LAG {
@@ -363,7 +367,11 @@ pub fn video(a: VideoArgs) -> Result<()> {
     let fps = format.fps();
     let options = ProcessOptions {
         tracker: TrackerParams {
-            redetect_interval: a.redetect,
+            redetect_interval: a.redetect.unwrap_or(if unshear.uses_network_detector() {
+                NETWORK_REDETECT_INTERVAL
+            } else {
+                TrackerParams::default().redetect_interval
+            }),
             lost_interval: a.lost_interval,
             detect_width: a.detect_width,
             ..Default::default()

@@ -46,6 +46,61 @@ pub struct ShearEvalOptions {
     /// Faces annotated in the evaluated images but not evaluated themselves (too small, or
     /// beyond a limit): a detection of one of them is a real face, not counted as unmatched.
     pub also_annotated: Vec<AnnotatedFace>,
+    /// Also run each whole photo once with its annotated faces painted over
+    /// ([`face_free`]), to count false faces.
+    pub face_free: bool,
+}
+
+/// One photo with its annotated faces painted over ([`face_free`]), and what the pipeline
+/// reported on it.
+#[derive(Debug, Clone, PartialEq, Default, Serialize)]
+pub struct FaceFreeSample {
+    /// The image.
+    pub image: String,
+    /// Faces reported, accepted or refused.
+    pub faces: usize,
+    /// Faces with an accepted estimate.
+    pub accepted: usize,
+    /// The image's accepted shear, which `correct` would undo.
+    pub k: Option<f64>,
+}
+
+/// How far around each annotated face [`face_free`] paints, in eye distances: across, above
+/// and below the eyes' midpoint (hair, ears and chin included).
+const FACE_FREE_HALF_WIDTH: f64 = 1.8;
+const FACE_FREE_ABOVE: f64 = 1.8;
+const FACE_FREE_BELOW: f64 = 2.4;
+
+/// `img` with each of `faces` painted over by a flat rectangle of the image's mean colour
+/// (eyes' midpoint +-[`FACE_FREE_HALF_WIDTH`] eye distances across, [`FACE_FREE_ABOVE`] above and
+/// [`FACE_FREE_BELOW`] below, grown by the face's roll): a photo of the same scene without the
+/// annotated people's faces. Faces the annotations leave out stay.
+pub fn face_free(img: &image::DynamicImage, faces: &[&AnnotatedFace]) -> image::RgbImage {
+    let mut rgb = img.to_rgb8();
+    let n = f64::from(rgb.width()) * f64::from(rgb.height());
+    let mut sum = [0.0f64; 3];
+    for p in rgb.pixels() {
+        for c in 0..3 {
+            sum[c] += f64::from(p.0[c]);
+        }
+    }
+    let mean = image::Rgb(sum.map(|v| (v / n.max(1.0)).round() as u8));
+    for f in faces {
+        let (d, mid) = (f.eye_distance(), f.right_eye.midpoint(f.left_eye));
+        // A rolled face's rectangle, turned, fits in one this much larger.
+        let roll = (f.left_eye.y - f.right_eye.y).atan2(f.left_eye.x - f.right_eye.x);
+        let grow = 1.0 + roll.sin().abs();
+        let x0 = (mid.x - FACE_FREE_HALF_WIDTH * d * grow).max(0.0) as u32;
+        let x1 = (mid.x + FACE_FREE_HALF_WIDTH * d * grow).max(0.0) as u32;
+        let y0 = (mid.y - FACE_FREE_ABOVE * d * grow).max(0.0) as u32;
+        let y1 = (mid.y + FACE_FREE_BELOW * d * grow).max(0.0) as u32;
+        for y in y0..y1.min(rgb.height()) {
+            for x in x0..x1.min(rgb.width()) {
+                rgb.put_pixel(x, y, mean);
+            }
+        }
+    }
+    rgb
 }
 
 /// A detection, kept by the pipeline, that contains no annotated face of its image (both eyes
@@ -157,6 +212,9 @@ pub struct ShearEvalResult {
     pub unreadable: Vec<String>,
     /// Detections matching no annotated face, every shear.
     pub unmatched: Vec<UnmatchedDetection>,
+    /// The photos with their faces painted over, when asked for
+    /// ([`ShearEvalOptions::face_free`]).
+    pub face_free: Vec<FaceFreeSample>,
 }
 
 /// Runs the evaluation on whole images (no context crop), in parallel over images; `tick` is
@@ -182,16 +240,34 @@ pub fn evaluate_shear_in_context(
     let groups = by_image(faces.to_vec());
     // Parallel over images, the shears of one image in turn: each image is decoded (and
     // cropped) once, not once per shear, which was a third of the run time.
-    type Found = (Vec<ShearSample>, Vec<UnmatchedDetection>);
+    type Found = (
+        Vec<ShearSample>,
+        Vec<UnmatchedDetection>,
+        Option<FaceFreeSample>,
+    );
     let results: Vec<std::result::Result<Found, String>> = groups
         .par_iter()
         .map(|(path, annotated)| {
-            let (img, origin) = load_cropped(path, annotated, options, context)?;
             let known: Vec<&AnnotatedFace> = annotated
                 .iter()
                 .chain(options.also_annotated.iter().filter(|f| &f.image == path))
                 .collect();
-            let mut out: Found = (Vec::new(), Vec::new());
+            let face_free = if options.face_free {
+                let full = imageio::read_image(path, options.max_pixels)
+                    .map_err(|e| format!("{}: {e}", path.display()))?;
+                let painted = image::DynamicImage::ImageRgb8(face_free(&full, &known));
+                let report = unshear.estimate(&painted);
+                Some(FaceFreeSample {
+                    image: path.display().to_string(),
+                    faces: report.faces.len(),
+                    accepted: report.faces.iter().filter(|f| f.k.is_some()).count(),
+                    k: report.k,
+                })
+            } else {
+                None
+            };
+            let (img, origin) = load_cropped(path, annotated, options, context)?;
+            let mut out: Found = (Vec::new(), Vec::new(), face_free);
             for &k in &options.shears {
                 let (samples, unmatched) =
                     run_one(unshear, path, &img, origin, annotated, &known, k)?;
@@ -207,11 +283,13 @@ pub fn evaluate_shear_in_context(
     let mut samples = Vec::new();
     let mut unmatched = Vec::new();
     let mut unreadable = Vec::new();
+    let mut face_free = Vec::new();
     for r in results {
         match r {
-            Ok((s, u)) => {
+            Ok((s, u, f)) => {
                 samples.extend(s);
                 unmatched.extend(u);
+                face_free.extend(f);
             }
             Err(e) => {
                 if !unreadable.contains(&e) {
@@ -225,6 +303,7 @@ pub fn evaluate_shear_in_context(
         shears: options.shears.clone(),
         unreadable,
         unmatched,
+        face_free,
     }
 }
 
@@ -530,9 +609,15 @@ impl ShearEvalResult {
                 accepted.iter().filter(|&&e| e > GROSS_ERROR).count(),
             );
         }
+        let photos = {
+            let mut images: Vec<&str> = self.samples.iter().map(|s| s.image.as_str()).collect();
+            images.sort_unstable();
+            images.dedup();
+            images.len()
+        };
         let _ = writeln!(
             s,
-            "\nDetections matching no annotated face per shear (no annotated face, small ones included, has both eyes in the box; the data set does not annotate every face, so each is a false face or an unannotated real one: an upper bound on false faces; *accepted*: with an accepted estimate; *duplicates*: further reported faces whose boxes hold both eyes of an evaluated face already found, the same face reported twice):\n\n| true k | unmatched | accepted | images with one | duplicates |\n|---:|---:|---:|---:|---:|"
+            "\nDetections matching no annotated face per shear (no annotated face, small ones included, has both eyes in the box; the data set does not annotate every face, so each is a false face or an unannotated real one: an upper bound on false faces; *accepted*: with an accepted estimate; *duplicates*: further reported faces whose boxes hold both eyes of an evaluated face already found, the same face reported twice; *per 100 photos*: unmatched and accepted per 100 of the {photos} photos):\n\n| true k | unmatched | accepted | images with one | duplicates | per 100 photos |\n|---:|---:|---:|---:|---:|---:|"
         );
         for &k in &self.shears {
             let at: Vec<&UnmatchedDetection> =
@@ -540,13 +625,28 @@ impl ShearEvalResult {
             let mut images: Vec<&str> = at.iter().map(|u| u.image.as_str()).collect();
             images.sort_unstable();
             images.dedup();
+            let accepted = at.iter().filter(|u| u.accepted).count();
+            let per_100 = |n: usize| 100.0 * n as f64 / photos.max(1) as f64;
             let _ = writeln!(
                 s,
-                "| {k:+.2} | {} | {} | {} | {} |",
+                "| {k:+.2} | {} | {accepted} | {} | {} | {:.1} ({:.1}) |",
                 at.len(),
-                at.iter().filter(|u| u.accepted).count(),
                 images.len(),
-                self.at(k).iter().map(|s| s.duplicates).sum::<usize>()
+                self.at(k).iter().map(|s| s.duplicates).sum::<usize>(),
+                per_100(at.len()),
+                per_100(accepted),
+            );
+        }
+        if !self.face_free.is_empty() {
+            let n = self.face_free.len();
+            let with = |f: &dyn Fn(&FaceFreeSample) -> bool| self.face_free.iter().filter(|s| f(s)).count();
+            let accepted = with(&|s| s.accepted > 0);
+            let _ = writeln!(
+                s,
+                "\nFace-free photos (each whole photo once, unsheared, its annotated faces painted over with its mean colour, `eval::shear::face_free`; faces the annotations leave out stay, so these bound false faces from above):\n\n| photos | with a reported face | with an accepted face | without an accepted face | with an accepted shear |\n|---:|---:|---:|---:|---:|\n| {n} | {} | {accepted} | {:.1}% | {} |",
+                with(&|s| s.faces > 0),
+                100.0 - pct(accepted, n),
+                with(&|s| s.k.is_some()),
             );
         }
         let located: Vec<f64> = self.samples.iter().filter_map(|s| s.eye_error).collect();
@@ -575,6 +675,7 @@ impl ShearEvalResult {
     }
 
     /// Writes `samples.csv`, `samples.json`, `unmatched.csv` (see [`Self::unmatched_csv`]),
+    /// `face_free.csv` (with [`ShearEvalOptions::face_free`]: image, faces, accepted, k),
     /// `summary.md`, `estimates.png` (estimated vs true k) and `errors.png` (estimate-error
     /// histograms per k) into `dir` (created if needed).
     pub fn write_outputs(&self, dir: &Path) -> Result<()> {
@@ -590,6 +691,14 @@ impl ShearEvalResult {
         write("samples.csv", self.csv())?;
         write("samples.json", self.json())?;
         write("unmatched.csv", self.unmatched_csv())?;
+        if !self.face_free.is_empty() {
+            let mut csv = String::from("image,faces,accepted,k\n");
+            for f in &self.face_free {
+                let k = f.k.map_or(String::new(), |k| format!("{k:.5}"));
+                let _ = writeln!(csv, "{},{},{},{k}", f.image, f.faces, f.accepted);
+            }
+            write("face_free.csv", csv)?;
+        }
         let mut md = self.markdown();
         let _ = write!(
             md,
@@ -732,6 +841,21 @@ mod tests {
                     ..Default::default()
                 },
             ],
+            // Four face-free photos: one with a refused face, one with an accepted one.
+            face_free: vec![
+                FaceFreeSample::default(),
+                FaceFreeSample {
+                    faces: 1,
+                    ..Default::default()
+                },
+                FaceFreeSample {
+                    faces: 2,
+                    accepted: 1,
+                    k: Some(0.3),
+                    ..Default::default()
+                },
+                FaceFreeSample::default(),
+            ],
         };
         assert!(r.json().contains("\"true_k\": 0.2"));
         let md = r.markdown();
@@ -740,8 +864,10 @@ mod tests {
         // k = 0.2: one of two detected; tracking 0.22 - 0.01 - 0.2 = 0.01.
         assert!(md.contains("| +0.20 | 2 | 50.0% | 50.0% | 0.220 | 0.020 | 0.020 | 50.0% | 50.0% | 0.010 | 0.000 |"), "{md}");
         assert!(md.contains("<= 0.05: 75.0%"), "{md}");
-        assert!(md.contains("| +0.00 | 0 | 0 | 0 | 1 |"), "{md}");
-        assert!(md.contains("| +0.20 | 2 | 1 | 1 | 0 |"), "{md}");
+        // One photo ("a") evaluated: two unmatched per 100 photos is 200.
+        assert!(md.contains("| +0.00 | 0 | 0 | 0 | 1 | 0.0 (0.0) |"), "{md}");
+        assert!(md.contains("| +0.20 | 2 | 1 | 1 | 0 | 200.0 (100.0) |"), "{md}");
+        assert!(md.contains("| 4 | 2 | 1 | 75.0% | 1 |"), "{md}");
         assert_eq!(r.csv().lines().count(), 5);
         assert_eq!(r.unmatched_csv().lines().count(), 3);
     }
@@ -751,6 +877,24 @@ mod tests {
 mod protocol_tests {
     use super::*;
     use std::path::PathBuf;
+
+    /// The painted rectangle covers the face's extent around the eyes with the mean colour and
+    /// leaves the rest of the photo as it was.
+    #[test]
+    fn face_free_paints_the_face_and_nothing_else() {
+        let img = image::RgbImage::from_fn(200, 200, |x, _| image::Rgb([(x % 2 * 200) as u8; 3]));
+        let f = face(80.0, 80.0, 20.0);
+        let out = face_free(&image::DynamicImage::ImageRgb8(img.clone()), &[&f]);
+        // Mean of alternating 0 and 200 columns.
+        let mean = image::Rgb([100u8; 3]);
+        // Eyes' midpoint (90, 80), eye distance 20: x 54..126, y 44..128.
+        for (x, y) in [(55, 45), (125, 127), (90, 80), (90, 120)] {
+            assert_eq!(*out.get_pixel(x, y), mean, "({x}, {y})");
+        }
+        for (x, y) in [(52, 80), (128, 80), (90, 42), (90, 130), (0, 0)] {
+            assert_eq!(out.get_pixel(x, y), img.get_pixel(x, y), "({x}, {y})");
+        }
+    }
 
     fn face(x: f64, y: f64, d: f64) -> AnnotatedFace {
         AnnotatedFace {
@@ -788,6 +932,7 @@ mod protocol_tests {
             shears,
             unreadable: vec![],
             unmatched: vec![],
+            face_free: vec![],
         };
         let md = r.markdown();
         for row in [
