@@ -194,17 +194,17 @@ fn bench(c: &mut Criterion) {
     });
     group.finish();
 
-    // The default (thorough) search and the quick one (`--quick`).
+    // The default (the network detector), and the Viola-Jones searches in the same run:
+    // `--thorough` and `--quick`.
+    let thorough = match Unshear::new(Config::thorough()) {
+        Ok(u) => u,
+        Err(e) => panic!("models: {e}"),
+    };
     let quick = match Unshear::new(Config::quick()) {
         Ok(u) => u,
         Err(e) => panic!("models: {e}"),
     };
-    let mut group = c.benchmark_group("estimate whole 1920x1080 frame");
-    group.sample_size(10);
-    group.bench_function("all threads", |b| b.iter(|| unshear.estimate_gray(&frame)));
-    group.bench_function("quick, all threads", |b| {
-        b.iter(|| quick.estimate_gray(&frame))
-    });
+    let searches = [("", &unshear), ("thorough, ", &thorough), ("quick, ", &quick)];
     // The same frame sheared by 0.3: the thorough search also turns the image de-sheared by the
     // shear its face measured (four detections more).
     let sheared = unshear::warp::apply_shear(
@@ -215,14 +215,9 @@ fn bench(c: &mut Criterion) {
     )
     .0
     .into_luma8();
-    group.bench_function("sheared 0.3, all threads", |b| {
-        b.iter(|| unshear.estimate_gray(&sheared))
-    });
-    group.bench_function("sheared 0.3, quick, all threads", |b| {
-        b.iter(|| quick.estimate_gray(&sheared))
-    });
-    // No face: every de-sheared and turned view is searched (13 detections, then 8 turned and
-    // de-sheared ones thoroughly; 7 quickly, whose turned views are at 12 degrees only).
+    // No face: the Viola-Jones searches search every de-sheared and turned view (13
+    // detections, then 8 turned and de-sheared ones thoroughly; 7 quickly, whose turned views
+    // are at 12 degrees only).
     let mut state = 0x2545_f491_u32;
     let noise = image::GrayImage::from_fn(1920, 1080, |_, _| {
         state ^= state << 13;
@@ -230,12 +225,33 @@ fn bench(c: &mut Criterion) {
         state ^= state << 5;
         image::Luma([(state >> 24) as u8])
     });
-    group.bench_function("no face, all threads", |b| {
-        b.iter(|| unshear.estimate_gray(&noise))
-    });
-    group.bench_function("no face, quick, all threads", |b| {
-        b.iter(|| quick.estimate_gray(&noise))
-    });
+    let mut group = c.benchmark_group("estimate whole 1920x1080 frame");
+    group.sample_size(10);
+    for (name, u) in searches {
+        group.bench_function(format!("{name}all threads"), |b| {
+            b.iter(|| u.estimate_gray(&frame))
+        });
+        group.bench_function(format!("sheared 0.3, {name}all threads"), |b| {
+            b.iter(|| u.estimate_gray(&sheared))
+        });
+        group.bench_function(format!("no face, {name}all threads"), |b| {
+            b.iter(|| u.estimate_gray(&noise))
+        });
+    }
+    group.finish();
+
+    // A 4000x3000 photo: the fixture enlarged to full height on a mid-grey canvas (the
+    // thorough search takes tens of seconds here: left out).
+    let big = img.resize(4000, 3000, FilterType::Triangle).to_luma8();
+    let mut photo = image::GrayImage::from_pixel(4000, 3000, image::Luma([128]));
+    image::imageops::overlay(&mut photo, &big, ((4000 - big.width()) / 2) as i64, 0);
+    let mut group = c.benchmark_group("estimate whole 4000x3000 photo");
+    group.sample_size(10);
+    for (name, u) in [("", &unshear), ("quick, ", &quick)] {
+        group.bench_function(format!("{name}all threads"), |b| {
+            b.iter(|| u.estimate_gray(&photo))
+        });
+    }
     group.finish();
 }
 

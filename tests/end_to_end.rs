@@ -538,3 +538,46 @@ fn the_thorough_search_reports_no_false_faces() {
         }
     }
 }
+
+/// The default detector finds faces at the sizes and rolls it promises: each fixture face
+/// rolled by up to 45 degrees each way, and shrunk until its box is about 45 pixels wide (the
+/// default smallest face is 40), is found once and measured within 0.06 of the upright,
+/// full-size face's shear.
+#[test]
+fn the_network_detector_finds_small_and_rolled_faces() {
+    use unshear::warp::rotate::rotate_gray;
+    let unshear = built(Config::default());
+    for path in fixtures() {
+        let gray = Unshear::gray(&load(&path));
+        let upright = unshear.estimate_gray(&gray);
+        let base = upright.k.expect("upright estimate");
+        for degrees in [-45.0f64, -30.0, 30.0, 45.0] {
+            let (turned, _) = rotate_gray(&gray, degrees.to_radians()).expect("rotate");
+            let report = unshear.estimate_gray(&turned);
+            assert_eq!(report.faces.len(), 1, "{}: {degrees}", path.display());
+            let k = report.k.expect("an accepted estimate");
+            assert!(
+                (k - base).abs() <= 0.06,
+                "{}: rolled {degrees}, k {k:.3} against upright {base:.3}",
+                path.display()
+            );
+        }
+        // Shrunk so that the face box is about 45 px wide.
+        let width = upright.faces[0].face_box.width;
+        let scale = 45.0 / width;
+        let small = image::imageops::resize(
+            &gray,
+            (f64::from(gray.width()) * scale).round() as u32,
+            (f64::from(gray.height()) * scale).round() as u32,
+            image::imageops::FilterType::Triangle,
+        );
+        let report = unshear.estimate_gray(&small);
+        assert_eq!(report.faces.len(), 1, "{}: small", path.display());
+        assert!(
+            report.k.is_some_and(|k| (k - base).abs() <= 0.06),
+            "{}: small, k {:?} against {base:.3}",
+            path.display(),
+            report.k
+        );
+    }
+}

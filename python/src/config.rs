@@ -8,7 +8,7 @@ use pyo3::types::{PyDict, PyList};
 use unshear::detect::DetectorParams;
 use unshear::estimate::ShearModel;
 use unshear::filters::FilterType;
-use unshear::{Config, FaceSearch, Locator, Unshear};
+use unshear::{Config, Detector, FaceSearch, Locator, Unshear};
 
 /// How hard faces are searched for (`search=`): the CLI's default, `--quick` and
 /// `--no-shear-search`.
@@ -23,14 +23,19 @@ pub enum Search {
 /// of stills or of video, as the CLI leaves it).
 #[derive(Debug, Clone, PartialEq)]
 pub struct PyConfig {
+    /// `None`: the network detector, or Viola-Jones when `search` or the filters ask for it
+    /// (as the CLI's `--quick`, `--thorough` and `--locator filters` do).
+    pub detector: Option<Detector>,
     pub locator: Locator,
-    pub search: Search,
+    /// `None`: `quick` (with Viola-Jones; the network detector has no views).
+    pub search: Option<Search>,
     pub min_confidence: f64,
     pub max_crops: Option<u16>,
     pub refinements: usize,
     pub shear_model: Option<ShearModel>,
     pub filter_type: FilterType,
-    pub min_face: u32,
+    /// `None`: the detector's own (40 px for the network, the cascade's 20 px window).
+    pub min_face: Option<u32>,
     pub min_neighbors: u32,
     pub scale_factor: f64,
     pub proposals: bool,
@@ -45,19 +50,17 @@ impl Default for PyConfig {
     fn default() -> Self {
         let c = Config::default();
         Self {
+            detector: None,
             locator: c.locator,
-            search: match c.search {
-                FaceSearch::Thorough => Search::Thorough,
-                FaceSearch::Quick => Search::Quick,
-            },
+            search: None,
             min_confidence: c.min_confidence,
             max_crops: None,
             refinements: c.refinements,
             shear_model: None,
             filter_type: c.filter_type,
-            min_face: c.detector.min_size.0,
-            min_neighbors: c.detector.min_neighbors,
-            scale_factor: c.detector.scale_factor,
+            min_face: None,
+            min_neighbors: c.cascade.min_neighbors,
+            scale_factor: c.cascade.scale_factor,
             proposals: c.proposals,
             fallback_cascade: c.fallback_cascade,
             search_every_view: c.search_every_view,
@@ -68,7 +71,8 @@ impl Default for PyConfig {
 }
 
 /// The keyword names, in the order `Unshear.config` lists them.
-pub const KEYS: [&str; 15] = [
+pub const KEYS: [&str; 16] = [
+    "detector",
     "locator",
     "search",
     "min_confidence",
@@ -153,6 +157,10 @@ fn floats(key: &str, value: &Bound<'_, PyAny>) -> PyResult<Option<Vec<f64>>> {
     Ok(Some(list))
 }
 
+pub const DETECTORS: [(&str, Detector); 2] = [
+    ("network", Detector::Network),
+    ("viola-jones", Detector::ViolaJones),
+];
 pub const LOCATORS: [(&str, Locator); 2] =
     [("network", Locator::Network), ("filters", Locator::Filters)];
 pub const SEARCHES: [(&str, Search); 3] = [
@@ -191,7 +199,9 @@ impl PyConfig {
             let optional_none = value.is_none()
                 && matches!(
                     key.as_str(),
-                    "max_crops"
+                    "detector"
+                        | "search"
+                        | "max_crops"
                         | "shear_model"
                         | "min_face"
                         | "shear_hypotheses"
@@ -201,14 +211,15 @@ impl PyConfig {
                 continue;
             }
             match key.as_str() {
+                "detector" => c.detector = Some(choice(&key, &value, &DETECTORS)?),
                 "locator" => c.locator = choice(&key, &value, &LOCATORS)?,
-                "search" => c.search = choice(&key, &value, &SEARCHES)?,
+                "search" => c.search = Some(choice(&key, &value, &SEARCHES)?),
                 "min_confidence" => c.min_confidence = number(&key, &value, "a number")?,
                 "max_crops" => c.max_crops = Some(number(&key, &value, "an integer")?),
                 "refinements" => c.refinements = number(&key, &value, "an integer")?,
                 "shear_model" => c.shear_model = Some(choice(&key, &value, &SHEAR_MODELS)?),
                 "filter_type" => c.filter_type = choice(&key, &value, &FILTER_TYPES)?,
-                "min_face" => c.min_face = number(&key, &value, "an integer")?,
+                "min_face" => c.min_face = Some(number(&key, &value, "an integer")?),
                 "min_neighbors" => c.min_neighbors = number(&key, &value, "an integer")?,
                 "scale_factor" => c.scale_factor = number(&key, &value, "a number")?,
                 "proposals" => c.proposals = flag(&key, &value)?,
@@ -237,7 +248,10 @@ impl PyConfig {
                 return bad(&format!("max_crops must be 1 to 64, got {n}"));
             }
         }
-        if self.search == Search::Single
+        if self.detector == Some(Detector::Network) && self.search.is_some() {
+            return bad("search chooses the views of detector=\"viola-jones\"; the network detector has none");
+        }
+        if self.search == Some(Search::Single)
             && (self.shear_hypotheses.is_some()
                 || self.roll_hypotheses.is_some()
                 || self.fallback_cascade
@@ -248,7 +262,7 @@ impl PyConfig {
                  fallback_cascade or search_every_view",
             );
         }
-        if self.search_every_view && self.search != Search::Quick {
+        if self.search_every_view && self.search != Some(Search::Quick) {
             return bad(
                 "search_every_view goes with search=\"quick\" (the thorough search always \
                  searches every view)",
@@ -257,11 +271,28 @@ impl PyConfig {
         Ok(())
     }
 
+    /// The detector these settings run: the one asked for, else Viola-Jones when a search or
+    /// the filters ask for it (as the CLI decides), else the network.
+    pub fn resolved_detector(&self) -> Detector {
+        let viola_jones = self.search.is_some()
+            || self.locator == Locator::Filters
+            || self.shear_hypotheses.is_some()
+            || self.roll_hypotheses.is_some()
+            || self.fallback_cascade
+            || self.search_every_view;
+        match self.detector {
+            Some(d) => d,
+            None if viola_jones => Detector::ViolaJones,
+            None => Detector::Network,
+        }
+    }
+
     /// The settings as a dict of the keyword arguments (what `Unshear.config` returns).
     pub fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let d = PyDict::new(py);
+        d.set_item("detector", name_of(&DETECTORS, self.resolved_detector()))?;
         d.set_item("locator", name_of(&LOCATORS, self.locator))?;
-        d.set_item("search", name_of(&SEARCHES, self.search))?;
+        d.set_item("search", self.search.map(|s| name_of(&SEARCHES, s)))?;
         d.set_item("min_confidence", self.min_confidence)?;
         d.set_item("max_crops", self.max_crops)?;
         d.set_item("refinements", self.refinements)?;
@@ -300,12 +331,14 @@ pub fn to_config(cfg: &PyConfig, use_: Use) -> Config {
         Use::Stills => Config::default(),
         Use::Video => Config::video(),
     };
-    let single = cfg.search == Search::Single;
+    let single = cfg.search == Some(Search::Single);
     let mut c = Config {
+        detector: cfg.resolved_detector(),
+        min_face: cfg.min_face.unwrap_or(base.min_face),
         locator: cfg.locator,
         search: match cfg.search {
-            Search::Thorough => FaceSearch::Thorough,
-            Search::Quick | Search::Single => FaceSearch::Quick,
+            Some(Search::Thorough) => FaceSearch::Thorough,
+            _ => FaceSearch::Quick,
         },
         min_confidence: cfg.min_confidence,
         refinements: cfg.refinements,
@@ -315,8 +348,8 @@ pub fn to_config(cfg: &PyConfig, use_: Use) -> Config {
         roll_hypotheses: cfg.roll_hypotheses.clone(),
         fallback_cascade: cfg.fallback_cascade && !single,
         filter_type: cfg.filter_type,
-        detector: DetectorParams {
-            min_size: (cfg.min_face, cfg.min_face),
+        cascade: DetectorParams {
+            min_size: (cfg.min_face.unwrap_or(0), cfg.min_face.unwrap_or(0)),
             min_neighbors: cfg.min_neighbors,
             scale_factor: cfg.scale_factor,
             ..DetectorParams::default()

@@ -104,14 +104,15 @@ def test_refused_estimates_keep_their_measurement(face: np.ndarray) -> None:
 
 def test_defaults_are_the_clis() -> None:
     assert unshear.Unshear().config == {
+        "detector": "network",
         "locator": "network",
-        "search": "thorough",
+        "search": None,
         "min_confidence": 0.25,
         "max_crops": None,
         "refinements": 0,
         "shear_model": None,
         "filter_type": "mosse",
-        "min_face": 0,
+        "min_face": None,
         "min_neighbors": 3,
         "scale_factor": 1.1,
         "proposals": True,
@@ -125,6 +126,7 @@ def test_defaults_are_the_clis() -> None:
 
 def test_every_setting_round_trips() -> None:
     config = {
+        "detector": "viola-jones",
         "locator": "filters",
         "search": "quick",
         "min_confidence": 0.5,
@@ -146,7 +148,9 @@ def test_every_setting_round_trips() -> None:
     assert unshear.Unshear(**u.config).config == config
     assert "search='quick'" in repr(u) and repr(unshear.Unshear()) == "Unshear()"
     # None means the default, for the settings whose default is None.
-    assert unshear.Unshear(max_crops=None, min_face=None).config["min_face"] == 0
+    assert unshear.Unshear(max_crops=None, min_face=None).config["min_face"] is None
+    # A search is the cascade's: it chooses the Viola-Jones detector, as --quick does.
+    assert unshear.Unshear(search="thorough").config["detector"] == "viola-jones"
 
 
 @pytest.mark.parametrize(
@@ -169,6 +173,8 @@ def test_every_setting_round_trips() -> None:
         ({"search": "single", "shear_hypotheses": [0.1]}, ValueError, "one detection pass"),
         ({"search_every_view": True}, ValueError, 'search="quick"'),
         ({"min_face": True}, TypeError, "got bool"),
+        ({"detector": "haar"}, ValueError, "network, viola-jones"),
+        ({"detector": "network", "search": "quick"}, ValueError, "has none"),
     ],
 )
 def test_bad_settings(kwargs: dict[str, object], error: type, match: str) -> None:
@@ -214,6 +220,8 @@ def assert_same(cli: dict[str, object], report: unshear.Report) -> None:
     [
         ([], {}),
         (["--quick"], {"search": "quick"}),
+        (["--thorough"], {"search": "thorough"}),
+        (["--detector", "viola-jones"], {"detector": "viola-jones"}),
         (
             ["--locator", "filters", "--min-confidence", "0"],
             {"locator": "filters", "min_confidence": 0.0},

@@ -32,6 +32,7 @@ BGR with ``bgr=True``) or 4 (RGBA / BGRA); ``uint8`` or ``uint16``; any strides.
 
 PathLike: TypeAlias = str | os.PathLike[str]
 Point: TypeAlias = tuple[float, float]
+Detector: TypeAlias = Literal["network", "viola-jones"]
 Locator: TypeAlias = Literal["network", "filters"]
 Search: TypeAlias = Literal["thorough", "quick", "single"]
 ShearModel: TypeAlias = Literal["equation5", "shear-roll", "shear-roll-yaw"]
@@ -131,11 +132,16 @@ class Unshear:
 
     The settings mirror the CLI's options, with the CLI's defaults:
 
+    * ``detector``: what finds the faces: ``"network"`` (one pass of the built-in detector
+      trained on sheared and rolled faces) or ``"viola-jones"`` (the paper's cascade)
+      (``--detector``; default ``None``: the network, or Viola-Jones when ``search`` or the
+      filters ask for it).
     * ``locator``: what locates the eyes, nose and mouth: the landmark ``"network"`` (default)
       or the paper's correlation ``"filters"`` (``--locator``).
-    * ``search``: ``"thorough"`` (default: every de-sheared and turned view of every image),
-      ``"quick"`` (``--quick``: 6 to 9 times faster on a frame with a face, about 4% fewer faces)
-      or ``"single"`` (``--no-shear-search``: one detection pass, the paper's).
+    * ``search``: Viola-Jones only: ``"quick"`` (default: the image as it is, other views when
+      it shows no trusted face), ``"thorough"`` (``--thorough``: every de-sheared and turned
+      view of every image, about 20 times slower than the network detector) or ``"single"``
+      (``--no-shear-search``: one detection pass, the paper's).
     * ``min_confidence``: refuse estimates below this confidence, 0 to 1 (default 0.25).
     * ``max_crops``: most crops the network reads per face, 1 to 64 (default ``None``: 8 for
       stills, stopping when the estimate settles; 2 for video) (``--max-crops``).
@@ -143,8 +149,8 @@ class Unshear:
     * ``shear_model``: filters only: ``"equation5"``, ``"shear-roll"`` or ``"shear-roll-yaw"``
       (default ``None``: shear-roll-yaw for stills, equation5 for video).
     * ``filter_type``: the built-in filter set, ``"mosse"`` (default), ``"asef"``, ``"umace"``.
-    * ``min_face``: smallest face box in pixels (default ``None``: the cascade's 20 px window);
-      60 makes detection about 4 times faster.
+    * ``min_face``: smallest face box in pixels (default ``None``: 40 for the network
+      detector, the cascade's 20 px window for Viola-Jones); larger is faster.
     * ``min_neighbors`` (3) and ``scale_factor`` (1.1): the detector's OpenCV parameters.
     * ``proposals``: the thorough search's face proposals (default ``True``; ``--no-proposals``).
     * ``fallback_cascade``: also ask OpenCV's ``frontalface_default`` (default ``False``).
@@ -160,8 +166,9 @@ class Unshear:
         cls,
         *,
         max_pixels: int = ...,
+        detector: Detector | None = None,
         locator: Locator = "network",
-        search: Search = "thorough",
+        search: Search | None = None,
         min_confidence: float = 0.25,
         max_crops: int | None = None,
         refinements: int = 0,
@@ -275,8 +282,9 @@ class VideoCorrector:
         correct: bool = True,
         bgr: bool = False,
         max_pixels: int = ...,
+        detector: Detector | None = None,
         locator: Locator = "network",
-        search: Search = "thorough",
+        search: Search | None = None,
         min_confidence: float = 0.25,
         max_crops: int | None = None,
         refinements: int = 0,
