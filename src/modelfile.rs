@@ -32,11 +32,21 @@ impl<'a> ModelFile<'a> {
         version: u32,
         what: &str,
     ) -> Result<(H, Self)> {
+        Self::open_versions(bytes, magic, &[version], what).map(|(h, _, f)| (h, f))
+    }
+
+    /// [`Self::open`] for a reader of several format versions: also returns the file's.
+    pub(crate) fn open_versions<H: DeserializeOwned>(
+        bytes: &'a [u8],
+        magic: &[u8; 8],
+        versions: &[u32],
+        what: &str,
+    ) -> Result<(H, u32, Self)> {
         if bytes.get(..8) != Some(magic.as_slice()) {
             return Err(Error::ModelFile(format!("not {what} (bad magic)")));
         }
         let found = read_u32(bytes, 8)?;
-        if found != version {
+        if !versions.contains(&found) {
             return Err(Error::ModelFile(format!("unsupported version {found}")));
         }
         let header_end = (read_u32(bytes, 12)? as usize)
@@ -49,6 +59,7 @@ impl<'a> ModelFile<'a> {
             .map_err(|e| Error::ModelFile(format!("header: {e}")))?;
         Ok((
             header,
+            found,
             Self {
                 bytes,
                 at: header_end,
