@@ -192,6 +192,29 @@ fn bench(c: &mut Criterion) {
     group.bench_function("face proposals, all threads", |b| {
         b.iter(|| proposals.propose(&frame, &params))
     });
+    // The single-pass detector (`models/detector.bin`) for faces from 40 px boxes (eye distance
+    // 15.2 px), with its own pyramid step and threshold.
+    let detector = match unshear::detect::ProposalNet::embedded_detector() {
+        Ok(p) => p,
+        Err(e) => panic!("face detector: {e}"),
+    };
+    let detector_params = unshear::detect::ProposalParams {
+        min_eye_distance: 40.0 * unshear::detect::boxes::EYE_DISTANCE_PER_BOX_WIDTH,
+        ..detector.default_params()
+    };
+    let proposals_40 = unshear::detect::ProposalParams {
+        min_eye_distance: 40.0 * unshear::detect::boxes::EYE_DISTANCE_PER_BOX_WIDTH,
+        ..Default::default()
+    };
+    group.bench_function("face proposals from 40 px boxes, all threads", |b| {
+        b.iter(|| proposals.propose(&frame, &proposals_40))
+    });
+    group.bench_function("face detector, 1 thread", |b| {
+        single_thread(|| b.iter(|| detector.propose(&frame, &detector_params)))
+    });
+    group.bench_function("face detector, all threads", |b| {
+        b.iter(|| detector.propose(&frame, &detector_params))
+    });
     group.finish();
 
     // The default (the network detector), and the Viola-Jones searches in the same run:
