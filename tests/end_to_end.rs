@@ -540,9 +540,10 @@ fn the_thorough_search_reports_no_false_faces() {
 }
 
 /// The default detector finds faces at the sizes and rolls it promises: each fixture face
-/// rolled by up to 45 degrees each way, and shrunk until its box is about 45 pixels wide (the
-/// default smallest face is 40), is found once and measured within 0.06 of the upright,
-/// full-size face's shear.
+/// rolled by 30 degrees each way, and shrunk until its box is about 45 pixels wide (the default
+/// smallest face is 40), is found once and measured within 0.06 of the upright, full-size
+/// face's shear; rolled by 45 degrees it is found, and its estimate is either that close or
+/// refused (`NETWORK_DETECTOR_MAX_ROLL`: two of these six were read as sheared by 0.16-0.22).
 #[test]
 fn the_network_detector_finds_small_and_rolled_faces() {
     use unshear::warp::rotate::rotate_gray;
@@ -555,12 +556,15 @@ fn the_network_detector_finds_small_and_rolled_faces() {
             let (turned, _) = rotate_gray(&gray, degrees.to_radians()).expect("rotate");
             let report = unshear.estimate_gray(&turned);
             assert_eq!(report.faces.len(), 1, "{}: {degrees}", path.display());
-            let k = report.k.expect("an accepted estimate");
-            assert!(
-                (k - base).abs() <= 0.06,
-                "{}: rolled {degrees}, k {k:.3} against upright {base:.3}",
-                path.display()
-            );
+            let close = |k: f64| (k - base).abs() <= 0.06;
+            match report.k {
+                Some(k) => assert!(
+                    close(k),
+                    "{}: rolled {degrees}, k {k:.3} against upright {base:.3}",
+                    path.display()
+                ),
+                None => assert_eq!(degrees.abs(), 45.0, "{}: {degrees}", path.display()),
+            }
         }
         // Shrunk so that the face box is about 45 px wide.
         let width = upright.faces[0].face_box.width;

@@ -55,6 +55,12 @@ use search::{
     THOROUGH_SHEAR_HYPOTHESES as THOROUGH_SHEARS, THOROUGH_STAGE_SLACK, THOROUGH_VIEW_MIN_FACE,
 };
 
+/// The largest head roll (degrees) of a face found by the network detector whose estimate is
+/// accepted: at 45 degrees, two of the six fixture cases
+/// (`the_network_detector_finds_small_and_rolled_faces`) were read as rolled about 39 degrees and
+/// sheared by 0.16-0.22, with high confidence; at 30 degrees none was.
+pub const NETWORK_DETECTOR_MAX_ROLL: f64 = 35.0;
+
 /// The models a corrector runs: the built-in ones ([`Models::builtin`]) or files of the user's
 /// (a cascade XML, a filter file from `unshear train`, a network from
 /// `scripts/train_landmarks.py`).
@@ -68,6 +74,8 @@ pub struct Models {
     pub network: LandmarkNet,
     /// The face proposal classifier of the thorough search.
     pub proposals: ProposalNet,
+    /// The single-pass face detector ([`Detector::Network`]).
+    pub detector: ProposalNet,
 }
 
 impl Models {
@@ -78,6 +86,7 @@ impl Models {
             filters: EyeFilters::builtin(filters)?,
             network: LandmarkNet::embedded()?,
             proposals: ProposalNet::embedded()?,
+            detector: ProposalNet::embedded_detector()?,
         })
     }
 }
@@ -97,9 +106,10 @@ pub struct Unshear {
     /// The lenient detectors of [`FaceSearch::Thorough`], when it is set (used with the network
     /// only).
     thorough: Option<ThoroughDetectors>,
-    /// The face proposal classifier: the network detector, or the thorough search's windows
-    /// when [`Config::proposals`] is set.
+    /// The face proposal classifier of the thorough search, when [`Config::proposals`] is set.
     proposals: Option<ProposalNet>,
+    /// The single-pass face detector, with [`Detector::Network`].
+    face_detector: Option<ProposalNet>,
 }
 
 impl Unshear {
@@ -172,8 +182,8 @@ impl Unshear {
             shear_hypotheses,
             roll_hypotheses,
             thorough,
-            proposals: (config.proposals || config.detector == Detector::Network)
-                .then_some(models.proposals),
+            proposals: config.proposals.then_some(models.proposals),
+            face_detector: (config.detector == Detector::Network).then_some(models.detector),
             config,
         })
     }
@@ -256,7 +266,7 @@ impl Unshear {
             let min_width = f64::from(self.config.min_face);
             let windows = network_windows(net, gray, min_width);
             let budget = self.config.network_budget;
-            self.judge_windows(gray, windows, 0.0, budget, &mut all);
+            self.judge_windows(gray, windows, None, budget, &mut all);
             return most_confident_of_overlapping(all);
         }
         let thorough = self.thorough_detectors();
@@ -363,14 +373,15 @@ impl Unshear {
 
     /// Judges the network detector's `windows` in `gray`, strongest first, each against the
     /// faces in `found` so far (a window on a face already found is skipped): the landmark
-    /// network, started from the window with shear `start_k` and `budget`, must find a face
-    /// there ([`window_is_face`]) and where the window expects it ([`proposal_shows`]). The
-    /// faces found join `found`.
+    /// network, started from the window's shear (or `start_k`, a shear known better, such as a
+    /// video's filtered one) and roll with `budget`, must find a face there
+    /// ([`window_is_face`]) and where the window expects it ([`proposal_shows`]). The faces
+    /// found join `found`.
     pub(crate) fn judge_windows(
         &self,
         gray: &GrayImage,
         windows: Vec<(Detection, f32)>,
-        start_k: f64,
+        start_k: Option<f64>,
         budget: Budget,
         found: &mut Vec<(Rect, Option<FaceReport>)>,
     ) {
@@ -379,13 +390,19 @@ impl Unshear {
                 continue;
             }
             let start = FaceStart {
-                k: start_k + d.view_k,
+                k: start_k.unwrap_or(d.view_k),
                 roll: d.view_roll,
                 budget: Some(budget),
             };
-            let Some(r) = self.estimate_face(gray, d.face_box, start) else {
+            let Some(mut r) = self.estimate_face(gray, d.face_box, start) else {
                 continue;
             };
+            if r.roll_degrees.abs() > NETWORK_DETECTOR_MAX_ROLL && r.k.is_some() {
+                // Strongly rolled faces found by the network detector are measured from its
+                // rough roll, and can be read as less rolled and sheared instead.
+                r.k = None;
+                r.refused = Some(Refusal::UnreliablePose);
+            }
             if window_is_face(logit, &r) && proposal_shows(&d, &r) {
                 found.push((d.face_box, Some(r)));
             }
@@ -430,14 +447,14 @@ impl Unshear {
         } else {
             network_windows(net, gray, min_width)
         };
-        self.judge_windows(gray, windows, start_k, budget, found);
+        self.judge_windows(gray, windows, Some(start_k), budget, found);
     }
 
     /// The proposal network when it is the face detector ([`Detector::Network`] with the
     /// network locator, which judges its windows).
     pub(crate) fn network_detector(&self) -> Option<&ProposalNet> {
-        let network = self.config.detector == Detector::Network && self.locator() == Locator::Network;
-        self.proposals.as_ref().filter(|_| network)
+        let network = self.locator() == Locator::Network;
+        self.face_detector.as_ref().filter(|_| network)
     }
 
     /// Says so when the image's shape keeps some of the search's views from being searched

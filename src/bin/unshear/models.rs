@@ -111,11 +111,14 @@ pub fn load_models(m: &ModelArgs, base: Config) -> Result<Unshear> {
     };
     let proposals =
         ProposalNet::embedded().context("loading the built-in face proposal classifier")?;
+    let detector =
+        ProposalNet::embedded_detector().context("loading the built-in face detector")?;
     let models = Models {
         cascade,
         filters,
         network,
         proposals,
+        detector,
     };
     Ok(Unshear::with_models(config, models)?)
 }
