@@ -227,7 +227,11 @@ fn bench(c: &mut Criterion) {
         Ok(u) => u,
         Err(e) => panic!("models: {e}"),
     };
-    let searches = [("", &unshear), ("thorough, ", &thorough), ("quick, ", &quick)];
+    let searches = [
+        ("", &unshear),
+        ("thorough, ", &thorough),
+        ("quick, ", &quick),
+    ];
     // The same frame sheared by 0.3: the thorough search also turns the image de-sheared by the
     // shear its face measured (four detections more).
     let sheared = unshear::warp::apply_shear(

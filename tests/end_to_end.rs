@@ -534,7 +534,12 @@ fn the_thorough_search_reports_no_false_faces() {
             ("blurred noise", &blurred, 0),
         ] {
             let found = unshear.estimate_gray(frame).faces;
-            assert_eq!(found.len(), faces, "{:?} {what}: {found:?}", config.detector);
+            assert_eq!(
+                found.len(),
+                faces,
+                "{:?} {what}: {found:?}",
+                config.detector
+            );
         }
     }
 }

@@ -31,9 +31,9 @@ mod tests;
 use image::{DynamicImage, GrayImage};
 
 pub use combine::{combined_shear, consensus, Consensus, FACE_UNCERTAINTY};
-pub use proposals::{box_from_eyes, follows};
 pub use correct::FACE_REGION_MARGIN;
 pub use face::FaceStart;
+pub use proposals::{box_from_eyes, follows};
 pub use report::{CorrectOptions, FaceReport, ImageReport, Refusal, Region};
 pub use search::{
     Detection, DEFAULT_ROLL_HYPOTHESES, DEFAULT_SHEAR_HYPOTHESES, MAX_VIEW_PIXELS_RATIO,
@@ -48,7 +48,9 @@ use crate::filters::{EyeFilters, FilterType};
 use crate::geometry::{Point, Rect};
 use crate::locate::network::{Budget, LandmarkNet};
 use combine::most_confident_of_overlapping;
-use proposals::{network_windows, proposal_detections, proposal_is_new, proposal_shows, window_is_face};
+use proposals::{
+    network_windows, proposal_detections, proposal_is_new, proposal_shows, window_is_face,
+};
 use search::{
     overlapping_groups, tries_of_group, FallbackDetector, ThoroughDetectors,
     NEAR_MISS_MIN_FACE_SCORE, THOROUGH_MIN_NEIGHBORS, THOROUGH_ROLL_HYPOTHESES as THOROUGH_ROLLS,
@@ -440,7 +442,8 @@ impl Unshear {
                 .into_iter()
                 .map(|(mut d, logit)| {
                     let b = d.face_box;
-                    d.face_box = Rect::new(b.x * scale, b.y * scale, b.width * scale, b.height * scale);
+                    d.face_box =
+                        Rect::new(b.x * scale, b.y * scale, b.width * scale, b.height * scale);
                     (d, logit)
                 })
                 .collect()

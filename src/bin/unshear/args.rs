@@ -146,7 +146,12 @@ pub struct ModelArgs {
     /// with --thorough in every view of every image, about 20 times slower than `network`
     /// (docs/performance.md) [default: network; viola-jones with --locator filters, --quick
     /// or --thorough].
-    #[arg(help_heading = "Face search", long, value_enum, value_name = "DETECTOR")]
+    #[arg(
+        help_heading = "Face search",
+        long,
+        value_enum,
+        value_name = "DETECTOR"
+    )]
     pub detector: Option<DetectorArg>,
     /// The Viola-Jones search in every de-sheared and turned view of every image, with the
     /// proposal windows added (implies --detector viola-jones): the most thorough and slowest.

@@ -639,7 +639,9 @@ impl ShearEvalResult {
         }
         if !self.face_free.is_empty() {
             let n = self.face_free.len();
-            let with = |f: &dyn Fn(&FaceFreeSample) -> bool| self.face_free.iter().filter(|s| f(s)).count();
+            let with = |f: &dyn Fn(&FaceFreeSample) -> bool| {
+                self.face_free.iter().filter(|s| f(s)).count()
+            };
             let accepted = with(&|s| s.accepted > 0);
             let _ = writeln!(
                 s,
@@ -866,7 +868,10 @@ mod tests {
         assert!(md.contains("<= 0.05: 75.0%"), "{md}");
         // One photo ("a") evaluated: two unmatched per 100 photos is 200.
         assert!(md.contains("| +0.00 | 0 | 0 | 0 | 1 | 0.0 (0.0) |"), "{md}");
-        assert!(md.contains("| +0.20 | 2 | 1 | 1 | 0 | 200.0 (100.0) |"), "{md}");
+        assert!(
+            md.contains("| +0.20 | 2 | 1 | 1 | 0 | 200.0 (100.0) |"),
+            "{md}"
+        );
         assert!(md.contains("| 4 | 2 | 1 | 75.0% | 1 |"), "{md}");
         assert_eq!(r.csv().lines().count(), 5);
         assert_eq!(r.unmatched_csv().lines().count(), 3);
