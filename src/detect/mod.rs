@@ -33,6 +33,6 @@ mod resize;
 mod viola_jones;
 
 pub use cascade::Cascade;
-pub use proposals::{Proposal, ProposalNet, ProposalParams};
+pub use proposals::{Proposal, ProposalNet, ProposalParams, OUTPUT_NAMES};
 pub use resize::to_gray_opencv;
 pub use viola_jones::{DetectorParams, FaceDetector, NearMisses, NEAR_MISS_MAX_IOU};

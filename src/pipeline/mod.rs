@@ -33,7 +33,7 @@ use image::{DynamicImage, GrayImage};
 pub use combine::{combined_shear, consensus, Consensus, FACE_UNCERTAINTY};
 pub use correct::FACE_REGION_MARGIN;
 pub use face::FaceStart;
-pub use proposals::{box_from_eyes, follows};
+pub use proposals::{box_from_eyes, follows, FOLLOW_MAX_MOVE, FOLLOW_MAX_SCALE};
 pub use report::{CorrectOptions, FaceReport, ImageReport, Refusal, Region};
 pub use search::{
     Detection, DEFAULT_ROLL_HYPOTHESES, DEFAULT_SHEAR_HYPOTHESES, MAX_VIEW_PIXELS_RATIO,

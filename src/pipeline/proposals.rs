@@ -167,9 +167,10 @@ pub fn box_from_eyes(face: &FaceReport) -> Rect {
 }
 
 /// How far (in its eye distances) a face may move from one video frame to the next and still
-/// be the face followed; and how much its eye distance may change.
-const FOLLOW_MAX_MOVE: f64 = 1.0;
-const FOLLOW_MAX_SCALE: f64 = 1.5;
+/// be the face followed.
+pub const FOLLOW_MAX_MOVE: f64 = 1.0;
+/// How much a followed face's eye distance may change from one video frame to the next.
+pub const FOLLOW_MAX_SCALE: f64 = 1.5;
 
 /// Whether `next`, located from `last`'s eyes in the next frame, is still that face: its eyes'
 /// midpoint within [`FOLLOW_MAX_MOVE`] eye distances of the last one and its eye distance

@@ -207,7 +207,7 @@ impl<'a> VideoProcessor<'a> {
         } else {
             params.redetect_interval
         };
-        if frame % interval.max(1) == 0 || (before > 0 && found.is_empty()) {
+        if frame.is_multiple_of(interval.max(1)) || (before > 0 && found.is_empty()) {
             stats.full_detections += 1;
             unshear.find_new_faces(gray, params.detect_width, view_k, budget, &mut found);
         }

@@ -65,11 +65,13 @@ pub struct FaceFreeSample {
     pub k: Option<f64>,
 }
 
-/// How far around each annotated face [`face_free`] paints, in eye distances: across, above
-/// and below the eyes' midpoint (hair, ears and chin included).
-const FACE_FREE_HALF_WIDTH: f64 = 1.8;
-const FACE_FREE_ABOVE: f64 = 1.8;
-const FACE_FREE_BELOW: f64 = 2.4;
+/// How far each way across from the eyes' midpoint [`face_free`] paints, in eye distances
+/// (hair, ears and chin are covered with the limits below).
+pub const FACE_FREE_HALF_WIDTH: f64 = 1.8;
+/// How far above the eyes' midpoint [`face_free`] paints, in eye distances.
+pub const FACE_FREE_ABOVE: f64 = 1.8;
+/// How far below the eyes' midpoint [`face_free`] paints, in eye distances.
+pub const FACE_FREE_BELOW: f64 = 2.4;
 
 /// `img` with each of `faces` painted over by a flat rectangle of the image's mean colour
 /// (eyes' midpoint +-[`FACE_FREE_HALF_WIDTH`] eye distances across, [`FACE_FREE_ABOVE`] above and
@@ -80,8 +82,8 @@ pub fn face_free(img: &image::DynamicImage, faces: &[&AnnotatedFace]) -> image::
     let n = f64::from(rgb.width()) * f64::from(rgb.height());
     let mut sum = [0.0f64; 3];
     for p in rgb.pixels() {
-        for c in 0..3 {
-            sum[c] += f64::from(p.0[c]);
+        for (total, &v) in sum.iter_mut().zip(&p.0) {
+            *total += f64::from(v);
         }
     }
     let mean = image::Rgb(sum.map(|v| (v / n.max(1.0)).round() as u8));
