@@ -17,10 +17,10 @@ def batch(faces: list[np.ndarray]) -> list[np.ndarray]:
     return [unshear.distort(f, k, canvas="expand") for f in faces for k in (-0.3, 0.0, 0.3)]
 
 
-def test_the_gil_is_released_while_rust_works(
-    corrector: unshear.Unshear, batch: list[np.ndarray]
-) -> None:
-    """A pure-Python thread keeps running during a long call: it could not if the GIL were held."""
+def test_the_gil_is_released_while_rust_works(batch: list[np.ndarray]) -> None:
+    """A pure-Python thread keeps running during a long call: it could not if the GIL were held.
+    The thorough Viola-Jones search makes the call long enough to measure."""
+    corrector = unshear.Unshear(search="thorough")
     stop = threading.Event()
     ticks = [0]
 
