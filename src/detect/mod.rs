@@ -34,5 +34,5 @@ mod viola_jones;
 
 pub use cascade::Cascade;
 pub use proposals::{Proposal, ProposalNet, ProposalParams, OUTPUT_NAMES};
-pub use resize::to_gray_opencv;
+pub use resize::{shrunk_to_width, to_gray_opencv};
 pub use viola_jones::{DetectorParams, FaceDetector, NearMisses, NEAR_MISS_MAX_IOU};

@@ -856,21 +856,33 @@ mod tests {
 
     /// [`file`] with the check logit given.
     fn file_with_check(window: usize, check: f32, layers: &[Spec]) -> Vec<u8> {
-        let specs: Vec<serde_json::Value> = layers
+        let specs = layer_specs(layers);
+        let header = serde_json::json!({"window": window, "check_logit": check, "layers": specs})
+            .to_string();
+        let mut bytes = file_start(1, &header);
+        for (w, b) in weights(layers) {
+            bytes.extend(w.iter().chain(&b).flat_map(|v| v.to_le_bytes()));
+        }
+        bytes
+    }
+
+    /// The layers' entries of a file header.
+    fn layer_specs(layers: &[Spec]) -> Vec<serde_json::Value> {
+        layers
             .iter()
             .map(|&(i, o, k, s, r)| {
                 serde_json::json!({"in": i, "out": o, "kernel": k, "stride": s, "relu": r})
             })
-            .collect();
-        let header = serde_json::json!({"window": window, "check_logit": check, "layers": specs})
-            .to_string();
+            .collect()
+    }
+
+    /// The start of a file of format `version`: the magic, the version and `header`; the
+    /// weights follow.
+    fn file_start(version: u32, header: &str) -> Vec<u8> {
         let mut bytes = MAGIC.to_vec();
-        bytes.extend(1u32.to_le_bytes());
+        bytes.extend(version.to_le_bytes());
         bytes.extend((header.len() as u32).to_le_bytes());
         bytes.extend(header.as_bytes());
-        for (w, b) in weights(layers) {
-            bytes.extend(w.iter().chain(&b).flat_map(|v| v.to_le_bytes()));
-        }
         bytes
     }
 
@@ -987,12 +999,7 @@ mod tests {
         extra: serde_json::Value,
     ) -> Vec<u8> {
         let check = reference_outputs(window, layers, &check_pixels(window));
-        let specs: Vec<serde_json::Value> = layers
-            .iter()
-            .map(|&(i, o, k, s, r)| {
-                serde_json::json!({"in": i, "out": o, "kernel": k, "stride": s, "relu": r})
-            })
-            .collect();
+        let specs = layer_specs(layers);
         let mut header = serde_json::json!({
             "window": window,
             "check_logit": check[0],
@@ -1004,10 +1011,7 @@ mod tests {
             h.extend(e.clone());
         }
         let header = header.to_string();
-        let mut bytes = MAGIC.to_vec();
-        bytes.extend(2u32.to_le_bytes());
-        bytes.extend((header.len() as u32).to_le_bytes());
-        bytes.extend(header.as_bytes());
+        let mut bytes = file_start(2, &header);
         for (w, b) in weights(layers) {
             bytes.extend(w.iter().chain(&b).flat_map(|v| v.to_le_bytes()));
         }
@@ -1080,22 +1084,14 @@ mod tests {
     fn constant_net(outputs: &[(&str, f32)]) -> ProposalNet {
         let layers: [Spec; 2] = [(1, 2, 12, 2, true), (2, outputs.len(), 1, 1, false)];
         let names: Vec<&str> = outputs.iter().map(|o| o.0).collect();
-        let specs: Vec<serde_json::Value> = layers
-            .iter()
-            .map(|&(i, o, k, s, r)| {
-                serde_json::json!({"in": i, "out": o, "kernel": k, "stride": s, "relu": r})
-            })
-            .collect();
+        let specs = layer_specs(&layers);
         let values: Vec<f32> = outputs.iter().map(|o| o.1).collect();
         let header = serde_json::json!({
             "window": 12, "check_logit": values[0], "check_outputs": values,
             "outputs": names, "layers": specs,
         })
         .to_string();
-        let mut bytes = MAGIC.to_vec();
-        bytes.extend(2u32.to_le_bytes());
-        bytes.extend((header.len() as u32).to_le_bytes());
-        bytes.extend(header.as_bytes());
+        let mut bytes = file_start(2, &header);
         let zeros = 2 * 144 + 2 + outputs.len() * 2;
         bytes.extend((0..zeros).flat_map(|_| 0f32.to_le_bytes()));
         bytes.extend(values.iter().flat_map(|v| v.to_le_bytes()));

@@ -10,6 +10,8 @@
 //! Outside the image the nearest edge pixel is repeated. Haar features are thresholded sums of
 //! these pixels, so a one-level difference can flip a weak classifier; hence the exact copy.
 
+use std::borrow::Cow;
+
 use image::{DynamicImage, GrayImage};
 
 /// Per-output-coordinate source offset and the two 8.8 fixed-point weights.
@@ -167,9 +169,38 @@ pub fn to_gray_opencv(img: &DynamicImage) -> GrayImage {
     GrayImage::from_raw(w, h, data).unwrap_or_else(|| GrayImage::new(w, h))
 }
 
+/// `gray` shrunk by area averaging to at most `width` columns (0: never), and the factor from
+/// the shrunk image's pixels back to `gray`'s (1 when it is not shrunk): detection on a video
+/// frame costs in proportion to its pixels.
+pub fn shrunk_to_width(gray: &GrayImage, width: u32) -> (Cow<'_, GrayImage>, f64) {
+    let (w, h) = gray.dimensions();
+    if width == 0 || w <= width {
+        return (Cow::Borrowed(gray), 1.0);
+    }
+    let scale = f64::from(w) / f64::from(width);
+    let height = ((f64::from(h) * f64::from(width) / f64::from(w)).round() as u32).max(1);
+    (
+        Cow::Owned(image::imageops::thumbnail(gray, width, height)),
+        scale,
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Wider images are shrunk to the width, keeping the aspect (rounded), with the factor
+    /// back; narrower ones and width 0 are borrowed as they are.
+    #[test]
+    fn shrunk_to_width_keeps_the_aspect_and_says_by_how_much() {
+        let gray = GrayImage::new(1920, 1080);
+        let (small, scale) = shrunk_to_width(&gray, 640);
+        assert_eq!((small.dimensions(), scale), ((640, 360), 3.0));
+        for width in [0, 1920, 4000] {
+            let (same, scale) = shrunk_to_width(&gray, width);
+            assert!(matches!(same, Cow::Borrowed(_)) && scale == 1.0, "{width}");
+        }
+    }
 
     #[test]
     fn identity_and_constant_images() {

@@ -432,24 +432,16 @@ impl Unshear {
         let Some(net) = self.network_detector() else {
             return;
         };
-        let (w, h) = gray.dimensions();
-        let min_width = f64::from(self.config.min_face);
-        let windows = if detect_width > 0 && w > detect_width {
-            let scale = f64::from(w) / f64::from(detect_width);
-            let sh = ((f64::from(h) / scale).round() as u32).max(1);
-            let shrunk = image::imageops::thumbnail(gray, detect_width, sh);
-            network_windows(net, &shrunk, min_width / scale)
-                .into_iter()
-                .map(|(mut d, logit)| {
-                    let b = d.face_box;
-                    d.face_box =
-                        Rect::new(b.x * scale, b.y * scale, b.width * scale, b.height * scale);
-                    (d, logit)
-                })
-                .collect()
-        } else {
-            network_windows(net, gray, min_width)
-        };
+        let (shrunk, scale) = crate::detect::shrunk_to_width(gray, detect_width);
+        let min_width = f64::from(self.config.min_face) / scale;
+        let windows = network_windows(net, &shrunk, min_width)
+            .into_iter()
+            .map(|(mut d, logit)| {
+                let b = d.face_box;
+                d.face_box = Rect::new(b.x * scale, b.y * scale, b.width * scale, b.height * scale);
+                (d, logit)
+            })
+            .collect();
         self.judge_windows(gray, windows, Some(start_k), budget, found);
     }
 

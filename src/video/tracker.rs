@@ -19,7 +19,7 @@
 use image::imageops;
 use image::{DynamicImage, GrayImage};
 
-use crate::detect::{DetectorParams, FaceDetector};
+use crate::detect::{shrunk_to_width, DetectorParams, FaceDetector};
 use crate::warp::{self, Canvas, Interpolation};
 use crate::{Rect, Shear};
 
@@ -141,17 +141,8 @@ impl FaceTracker {
 
     /// Detection on the whole frame, shrunk to `detect_width`.
     fn detect_full(&self, gray: &GrayImage, hint: f64) -> Vec<Rect> {
-        let (w, h) = gray.dimensions();
-        let target = self.params.detect_width;
-        let shrunk;
-        let (img, scale) = if target > 0 && w > target {
-            let sh = ((f64::from(h) * f64::from(target) / f64::from(w)).round() as u32).max(1);
-            shrunk = imageops::thumbnail(gray, target, sh);
-            (&shrunk, f64::from(w) / f64::from(target))
-        } else {
-            (gray, 1.0)
-        };
-        detect_desheared(&self.detector, img, hint)
+        let (img, scale) = shrunk_to_width(gray, self.params.detect_width);
+        detect_desheared(&self.detector, &img, hint)
             .into_iter()
             .map(|r| Rect::new(r.x * scale, r.y * scale, r.width * scale, r.height * scale))
             .collect()
