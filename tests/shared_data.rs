@@ -76,6 +76,7 @@ fn caltech_slice_tracks_the_shear() {
         max_pixels: unshear::imageio::DEFAULT_MAX_PIXELS,
         also_annotated: Vec::new(),
         face_free: false,
+        roll_degrees: 0.0,
     };
     // Each image cropped to its faces' surroundings, as `unshear eval shear` does (whole photos
     // of up to 2300 px took four minutes here).

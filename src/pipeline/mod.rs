@@ -49,7 +49,8 @@ use crate::geometry::{Point, Rect};
 use crate::locate::network::{Budget, LandmarkNet};
 use combine::most_confident_of_overlapping;
 use proposals::{
-    network_windows, proposal_detections, proposal_is_new, proposal_shows, window_is_face,
+    network_windows, proposal_detection, proposal_detections, proposal_is_new, proposal_shows,
+    window_is_face,
 };
 use search::{
     overlapping_groups, tries_of_group, FallbackDetector, ThoroughDetectors,
@@ -377,8 +378,10 @@ impl Unshear {
     /// faces in `found` so far (a window on a face already found is skipped): the landmark
     /// network, started from the window's shear (or `start_k`, a shear known better, such as a
     /// video's filtered one) and roll with `budget`, must find a face there
-    /// ([`window_is_face`]) and where the window expects it ([`proposal_shows`]). The faces
-    /// found join `found`.
+    /// ([`window_is_face`]) and where the window expects it ([`proposal_shows`]). A face found
+    /// elsewhere than the window expects (the window's regressed eyes are off, most often on
+    /// strongly sheared faces) gets a second look from where the network landed, and counts
+    /// when that look lands there again. The faces found join `found`.
     pub(crate) fn judge_windows(
         &self,
         gray: &GrayImage,
@@ -387,6 +390,7 @@ impl Unshear {
         budget: Budget,
         found: &mut Vec<(Rect, Option<FaceReport>)>,
     ) {
+        let mut second_looks = Vec::new();
         for (d, logit) in windows {
             if !proposal_is_new(&d, found) {
                 continue;
@@ -396,19 +400,60 @@ impl Unshear {
                 roll: d.view_roll,
                 budget: Some(budget),
             };
-            let Some(mut r) = self.estimate_face(gray, d.face_box, start) else {
+            let Some(r) = self.judge_window(gray, &d, logit, start) else {
                 continue;
             };
-            if r.roll_degrees.abs() > NETWORK_DETECTOR_MAX_ROLL && r.k.is_some() {
-                // Strongly rolled faces found by the network detector are measured from its
-                // rough roll, and can be read as less rolled and sheared instead.
-                r.k = None;
-                r.refused = Some(Refusal::UnreliablePose);
-            }
-            if window_is_face(logit, &r) && proposal_shows(&d, &r) {
+            if proposal_shows(&d, &r) {
                 found.push((d.face_box, Some(r)));
+            } else {
+                let second = Detection {
+                    view_k: start_k.unwrap_or(r.k_measured),
+                    view_roll: r.roll_degrees.to_radians(),
+                    ..proposal_detection(
+                        r.right_eye.midpoint(r.left_eye),
+                        r.right_eye.distance(r.left_eye),
+                    )
+                };
+                second_looks.push((second, logit));
             }
         }
+        // After every window's own look, so that a second look landing on part of a face
+        // cannot hide that face's own window.
+        for (d, logit) in second_looks {
+            if !proposal_is_new(&d, found) {
+                continue;
+            }
+            let start = FaceStart {
+                k: d.view_k,
+                roll: d.view_roll,
+                budget: Some(budget),
+            };
+            if let Some(r) = self.judge_window(gray, &d, logit, start) {
+                if proposal_shows(&d, &r) {
+                    found.push((d.face_box, Some(r)));
+                }
+            }
+        }
+    }
+
+    /// The face the landmark network finds from the network detector's window `d` (with
+    /// `logit`) started from `start`, if it is a face ([`window_is_face`]); strongly rolled
+    /// ones refused ([`NETWORK_DETECTOR_MAX_ROLL`]).
+    fn judge_window(
+        &self,
+        gray: &GrayImage,
+        d: &Detection,
+        logit: f32,
+        start: FaceStart,
+    ) -> Option<FaceReport> {
+        let mut r = self.estimate_face(gray, d.face_box, start)?;
+        if r.roll_degrees.abs() > NETWORK_DETECTOR_MAX_ROLL && r.k.is_some() {
+            // Strongly rolled faces found by the network detector are measured from its
+            // rough roll, and can be read as less rolled and sheared instead.
+            r.k = None;
+            r.refused = Some(Refusal::UnreliablePose);
+        }
+        window_is_face(logit, &r).then_some(r)
     }
 
     /// Whether the network detector finds the faces ([`Detector::Network`] with the network

@@ -24,8 +24,10 @@ pub enum Refusal {
     /// The located points are not laid out as a face's are (eye distance against the box, the
     /// nose and mouth below the eyes), so whatever they found is not a face.
     NotFaceLike,
-    /// A face both foreshortened and rolled, whose shear reading is unreliable (see
-    /// [`FORESHORTENED_ROLL_LIMIT`](crate::pipeline::confidence::FORESHORTENED_ROLL_LIMIT)).
+    /// A head tipped far back or forward, or foreshortened and rolled, or (found by the network
+    /// detector) rolled beyond [`NETWORK_DETECTOR_MAX_ROLL`](crate::pipeline::NETWORK_DETECTOR_MAX_ROLL):
+    /// its shear reading is unreliable (see
+    /// [`TRUSTED_NOSE_DROP`](crate::pipeline::confidence::TRUSTED_NOSE_DROP)).
     UnreliablePose,
 }
 

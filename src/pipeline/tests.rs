@@ -496,3 +496,50 @@ fn degenerate_boxes_give_no_estimate() {
         )
         .is_none());
 }
+
+/// A network detector window whose regressed eyes are off the face (here 0.7 eye distances to
+/// the side, beyond [`proposal_shows`]'s 0.5) still finds it: the landmark network walks to the
+/// face, and a second look from where it landed finds it there again.
+#[test]
+fn a_window_off_its_face_gets_a_second_look_from_where_the_network_landed() {
+    let u = built(Config::default());
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/example/face-k0.30.png");
+    let gray = Unshear::gray(&image::open(path).expect("bundled example"));
+    let face = u.estimate_gray(&gray).faces[0];
+    let eyes = face.right_eye.midpoint(face.left_eye);
+    let distance = face.right_eye.distance(face.left_eye);
+    let window = Detection {
+        view_k: 0.3,
+        ..proposal_detection(Point::new(eyes.x + 0.7 * distance, eyes.y), distance)
+    };
+    let budget = u.config.network_budget;
+    let first = u
+        .estimate_face(
+            &gray,
+            window.face_box,
+            FaceStart {
+                k: 0.3,
+                roll: 0.0,
+                budget: Some(budget),
+            },
+        )
+        .expect("the network finds the face from the window");
+    assert!(
+        !proposal_shows(&window, &first),
+        "the window must be off: {first:?} {distance}"
+    );
+    let mut found = Vec::new();
+    u.judge_windows(&gray, vec![(window, 5.0)], None, budget, &mut found);
+    assert_eq!(found.len(), 1, "{found:?}");
+    let (b, r) = found[0];
+    let r = r.expect("an estimate");
+    // The face found again, in the second look's box around the eyes first located.
+    assert!(r.right_eye.midpoint(r.left_eye).distance(eyes) < 0.1 * distance);
+    let expected_width = distance / EYE_DISTANCE_PER_BOX_WIDTH;
+    assert!((b.width / expected_width - 1.0).abs() < 0.15, "{b:?}");
+    assert!(
+        r.k.is_some_and(|k| (k - face.k_measured).abs() < 0.03),
+        "{r:?}"
+    );
+}

@@ -472,6 +472,21 @@ pub struct EvalShearArgs {
     /// annotations leave out).
     #[arg(long)]
     pub face_free: bool,
+    /// Faces the data set's annotations leave out, checked by eye, in its annotation format
+    /// (`assets/eval/webfaces-unannotated.txt` for the Caltech development photos): they are
+    /// not evaluated, but are painted over with `--face-free` and count as real faces, not
+    /// unmatched detections.
+    #[arg(long, value_name = "FILE")]
+    pub unannotated: Option<PathBuf>,
+    /// Turn each photo by this many degrees (clockwise positive, about its centre) before
+    /// shearing it, to measure rolled heads.
+    #[arg(
+        long,
+        value_name = "DEG",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    pub roll: f64,
     #[command(flatten)]
     pub model: ModelArgs,
 }

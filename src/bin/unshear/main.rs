@@ -500,6 +500,14 @@ fn eval_shear(a: EvalShearArgs) -> Result<()> {
     if let Some(n) = a.limit {
         also_annotated.extend(faces.split_off(n.min(faces.len())));
     }
+    if let Some(path) = &a.unannotated {
+        let text =
+            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+        also_annotated.extend(
+            CaltechWebFaces::parse(&text, &a.data.join("images"))
+                .with_context(|| format!("reading {}", path.display()))?,
+        );
+    }
     // The faces not evaluated still tell which detections are real faces, in the images
     // evaluated.
     let evaluated: std::collections::HashSet<_> = faces.iter().map(|f| f.image.clone()).collect();
@@ -509,6 +517,7 @@ fn eval_shear(a: EvalShearArgs) -> Result<()> {
         max_pixels: a.model.max_pixels,
         also_annotated,
         face_free: a.face_free,
+        roll_degrees: a.roll,
     };
     let bar = progress_bar((faces.len() * a.k.len()) as u64);
     let result = evaluate_shear_in_context(&unshear, &faces, &options, a.context, || bar.inc(1));

@@ -31,6 +31,7 @@ use crate::imageio;
 use crate::pipeline::confidence::{box_outside_share, face_layout};
 use crate::pipeline::Unshear;
 use crate::stats::median;
+use crate::warp::rotate::{rotate_gray, Rotation};
 use crate::warp::{try_apply_shear, Canvas, Interpolation};
 
 /// Default context crop: 3 nominal face boxes around each annotated face.
@@ -49,6 +50,9 @@ pub struct ShearEvalOptions {
     /// Also run each whole photo once with its annotated faces painted over
     /// ([`face_free`]), to count false faces.
     pub face_free: bool,
+    /// Turn each (cropped) photo by this many degrees before shearing it: the heads rolled,
+    /// then read out by a rolling shutter (0: as they are).
+    pub roll_degrees: f64,
 }
 
 /// One photo with its annotated faces painted over ([`face_free`]), and what the pipeline
@@ -269,10 +273,23 @@ pub fn evaluate_shear_in_context(
                 None
             };
             let (img, origin) = load_cropped(path, annotated, options, context)?;
+            let (img, rotation) = if options.roll_degrees == 0.0 {
+                (img, None)
+            } else {
+                let (turned, rotation) =
+                    rotate_gray(&img.to_luma8(), options.roll_degrees.to_radians())
+                        .map_err(|e| format!("{}: {e}", path.display()))?;
+                (image::DynamicImage::ImageLuma8(turned), Some(rotation))
+            };
+            let photo = Photo {
+                path,
+                img: &img,
+                origin,
+                rotation,
+            };
             let mut out: Found = (Vec::new(), Vec::new(), face_free);
             for &k in &options.shears {
-                let (samples, unmatched) =
-                    run_one(unshear, path, &img, origin, annotated, &known, k)?;
+                let (samples, unmatched) = run_one(unshear, &photo, annotated, &known, k)?;
                 out.0.extend(samples);
                 out.1.extend(unmatched);
                 for _ in annotated.iter() {
@@ -327,15 +344,28 @@ fn load_cropped(
     )
 }
 
+/// One photo as the eval shears it: cropped (its top-left pixel at `origin` in the file) and
+/// perhaps turned (`rotation`, from the crop to `img`).
+struct Photo<'a> {
+    path: &'a Path,
+    img: &'a image::DynamicImage,
+    origin: Point,
+    rotation: Option<Rotation>,
+}
+
 fn run_one(
     unshear: &Unshear,
-    path: &Path,
-    img: &image::DynamicImage,
-    origin: Point,
+    photo: &Photo,
     annotated: &[AnnotatedFace],
     known: &[&AnnotatedFace],
     k: f64,
 ) -> std::result::Result<(Vec<ShearSample>, Vec<UnmatchedDetection>), String> {
+    let Photo {
+        path,
+        img,
+        origin,
+        rotation,
+    } = *photo;
     let shear = Shear::about_middle(k, img.height());
     let (sheared, placement) = try_apply_shear(img, shear, Interpolation::Linear, Canvas::Expand)
         .map_err(|e| format!("{}: {e}", path.display()))?;
@@ -344,8 +374,10 @@ fn run_one(
     // as detected.
     let found = unshear.detect_and_estimate(&Unshear::gray(&sheared));
     let millis = start.elapsed().as_secs_f64() * 1e3;
-    let moved =
-        |p: Point| placement.from_frame(shear.apply(Point::new(p.x - origin.x, p.y - origin.y)));
+    let moved = |p: Point| {
+        let p = Point::new(p.x - origin.x, p.y - origin.y);
+        placement.from_frame(shear.apply(rotation.map_or(p, |r| r.to_view(p))))
+    };
     let unmatched = found
         .iter()
         .filter_map(|(b, report)| {
@@ -357,6 +389,7 @@ fn run_one(
                 return None;
             }
             let c = shear.invert(placement.to_frame(b.center()));
+            let c = rotation.map_or(c, |r| r.to_input(c));
             Some(UnmatchedDetection {
                 image: path.display().to_string(),
                 true_k: k,
@@ -647,7 +680,7 @@ impl ShearEvalResult {
             let accepted = with(&|s| s.accepted > 0);
             let _ = writeln!(
                 s,
-                "\nFace-free photos (each whole photo once, unsheared, its annotated faces painted over with its mean colour, `eval::shear::face_free`; faces the annotations leave out stay, so these bound false faces from above):\n\n| photos | with a reported face | with an accepted face | without an accepted face | with an accepted shear |\n|---:|---:|---:|---:|---:|\n| {n} | {} | {accepted} | {:.1}% | {} |",
+                "\nFace-free photos (each whole photo once, unsheared, its annotated faces, and those listed with `--unannotated`, painted over with its mean colour, `eval::shear::face_free`; faces left out of both stay, so these bound false faces from above):\n\n| photos | with a reported face | with an accepted face | without an accepted face | with an accepted shear |\n|---:|---:|---:|---:|---:|\n| {n} | {} | {accepted} | {:.1}% | {} |",
                 with(&|s| s.faces > 0),
                 100.0 - pct(accepted, n),
                 with(&|s| s.k.is_some()),
