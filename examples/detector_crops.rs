@@ -41,6 +41,7 @@ use image::GrayImage;
 use rayon::prelude::*;
 use unshear::detect::boxes::{CROP_EYE_DISTANCES, EYES_ABOVE_CENTRE};
 use unshear::dev::dataset::{AnnotatedFace, CaltechWebFaces, FaceDataset};
+use unshear::dev::SplitMix64;
 use unshear::geometry::Point;
 
 /// Side of the windows, pixels.
@@ -71,31 +72,12 @@ const JITTER_MARGIN: f64 = 1.1;
 /// Most bilinear reads per window pixel and axis.
 const MAX_SUPERSAMPLING: usize = 4;
 
-/// SplitMix64, as the library's trainers use (seeded per photo, so the windows do not depend
-/// on the order the threads finish in).
-struct Rng(u64);
-
-impl Rng {
-    fn uniform(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    /// Uniform in `[-a, a)`.
-    fn symmetric(&mut self, a: f64) -> f64 {
-        (2.0 * self.uniform() - 1.0) * a
-    }
-
-    /// A roll: uniform in +-50 degrees or (half the time) +-15.
-    fn roll(&mut self) -> f64 {
-        if self.uniform() < 0.5 {
-            self.symmetric(MAX_ROLL)
-        } else {
-            self.symmetric(SMALL_ROLL)
-        }
+/// A roll: uniform in +-50 degrees or (half the time) +-15.
+fn roll(rng: &mut SplitMix64) -> f64 {
+    if rng.next_f64() < 0.5 {
+        rng.symmetric(MAX_ROLL)
+    } else {
+        rng.symmetric(SMALL_ROLL)
     }
 }
 
@@ -187,7 +169,9 @@ fn photo_windows(path: &Path, faces: &[AnnotatedFace], seed: u64) -> Vec<Window>
         return Vec::new();
     };
     let gray = unshear::detect::to_gray_opencv(&img);
-    let mut rng = Rng(seed);
+    // SplitMix64, as the library's trainers use (seeded per photo, so the windows do not
+    // depend on the order the threads finish in).
+    let mut rng = SplitMix64::new(seed);
     let mut out = Vec::new();
     let cell = JITTER_MARGIN * STRIDE / 2.0 / per_eye_distance();
     let step = JITTER_MARGIN * SCALE_STEP.ln() / 2.0;
@@ -200,7 +184,7 @@ fn photo_windows(path: &Path, faces: &[AnnotatedFace], seed: u64) -> Vec<Window>
         let natural = slant(face);
         for i in 0..PER_FACE + NEAR_MISSES {
             let k = rng.symmetric(MAX_SHEAR);
-            let roll = rng.roll();
+            let roll = roll(&mut rng);
             // The photo is turned by what the face's own slant leaves of the roll drawn.
             let turn = roll - natural;
             if i < PER_FACE {
@@ -210,19 +194,19 @@ fn photo_windows(path: &Path, faces: &[AnnotatedFace], seed: u64) -> Vec<Window>
                 let targets = [offset.0, offset.1, log_scale, k, roll].map(|v| v as f32);
                 out.push((pixels, 1, targets));
             } else {
-                let (offset, log_scale) = if rng.uniform() < 0.6 {
-                    let far = 1.2 + 1.3 * rng.uniform();
+                let (offset, log_scale) = if rng.next_f64() < 0.6 {
+                    let far = 1.2 + 1.3 * rng.next_f64();
                     let across = rng.symmetric(far);
-                    let far = if rng.uniform() < 0.5 { far } else { -far };
-                    let offset = if rng.uniform() < 0.5 {
+                    let far = if rng.next_f64() < 0.5 { far } else { -far };
+                    let offset = if rng.next_f64() < 0.5 {
                         (far, across)
                     } else {
                         (across, far)
                     };
                     (offset, rng.symmetric(step))
                 } else {
-                    let off = (2f64.ln() + rng.uniform() * (3.5f64 / 2.0).ln()) * {
-                        if rng.uniform() < 0.5 {
+                    let off = (2f64.ln() + rng.next_f64() * (3.5f64 / 2.0).ln()) * {
+                        if rng.next_f64() < 0.5 {
                             1.0
                         } else {
                             -1.0
@@ -246,8 +230,8 @@ fn photo_windows(path: &Path, faces: &[AnnotatedFace], seed: u64) -> Vec<Window>
         if made >= BACKGROUND {
             break;
         }
-        let d = (6f64.ln() + rng.uniform() * (largest / 6.0).ln()).exp();
-        let centre = Point::new(rng.uniform() * w, rng.uniform() * h);
+        let d = (6f64.ln() + rng.next_f64() * (largest / 6.0).ln()).exp();
+        let centre = Point::new(rng.next_f64() * w, rng.next_f64() * h);
         let near_a_face = eyes.iter().any(|&(m, fd)| {
             let ratio = d / fd;
             m.distance(centre) < 0.8 * fd.max(d) && ratio > 0.5 && ratio < 2.0
@@ -255,7 +239,7 @@ fn photo_windows(path: &Path, faces: &[AnnotatedFace], seed: u64) -> Vec<Window>
         if near_a_face {
             continue;
         }
-        let (k, turn) = (rng.symmetric(MAX_SHEAR), rng.roll());
+        let (k, turn) = (rng.symmetric(MAX_SHEAR), roll(&mut rng));
         let pixels = render(&gray, centre, (0.0, 0.0), d, k, turn);
         out.push((pixels, 0, [0.0; 5]));
         made += 1;

@@ -26,6 +26,7 @@ use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
 use unshear::dev::dataset::{AnnotatedFace, CaltechWebFaces, FaceDataset};
+use unshear::dev::SplitMix64;
 use unshear::geometry::{Point, Shear};
 use unshear::locate::network::{frame_around_eyes, CropFrame};
 use unshear::warp::{try_apply_shear, Canvas, Interpolation, Placement};
@@ -40,25 +41,6 @@ const BACKGROUND: usize = 24;
 const MIN_EYE_DISTANCE: f64 = 12.0;
 /// Photos with a face whose eyes are this far apart or more are not used.
 const MAX_EYE_DISTANCE: f64 = 40.0;
-
-/// SplitMix64, as the library's trainers use (seeded per photo, so the windows do not depend
-/// on the order the threads finish in).
-struct Rng(u64);
-
-impl Rng {
-    fn uniform(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    /// Uniform in `[-a, a)`.
-    fn symmetric(&mut self, a: f64) -> f64 {
-        (2.0 * self.uniform() - 1.0) * a
-    }
-}
 
 /// A photo as the windows are cut from it, and where its unsheared points lie in it.
 struct Version {
@@ -91,7 +73,9 @@ fn photo_windows(path: &Path, faces: &[AnnotatedFace], seed: u64) -> Vec<Window>
         return Vec::new();
     };
     let gray = unshear::detect::to_gray_opencv(&img);
-    let mut rng = Rng(seed);
+    // SplitMix64, as the library's trainers use (seeded per photo, so the windows do not
+    // depend on the order the threads finish in).
+    let mut rng = SplitMix64::new(seed);
     let shear = Shear::about_middle(rng.symmetric(0.55), gray.height());
     let mut versions = vec![Version {
         gray: gray.clone(),
@@ -115,11 +99,11 @@ fn photo_windows(path: &Path, faces: &[AnnotatedFace], seed: u64) -> Vec<Window>
         .filter(|f| f.eye_distance() >= MIN_EYE_DISTANCE)
     {
         for _ in 0..PER_FACE {
-            let v = &versions[(rng.uniform() * versions.len() as f64) as usize % versions.len()];
+            let v = &versions[(rng.next_f64() * versions.len() as f64) as usize % versions.len()];
             let mid = v.point(face.right_eye).midpoint(v.point(face.left_eye));
             let d = face.eye_distance();
             let k = rng.symmetric(if v.sheared { 0.1 } else { 0.55 });
-            let roll = if rng.uniform() < 0.5 {
+            let roll = if rng.next_f64() < 0.5 {
                 0.0
             } else {
                 rng.symmetric(0.35)
@@ -135,14 +119,15 @@ fn photo_windows(path: &Path, faces: &[AnnotatedFace], seed: u64) -> Vec<Window>
                 1,
                 &mut out,
             );
-            if rng.uniform() < 0.5 {
-                let side = |rng: &mut Rng| rng.symmetric(1.0).signum() * (0.8 + rng.uniform());
-                let (dx, dy, scale) = match (rng.uniform() * 3.0) as usize {
+            if rng.next_f64() < 0.5 {
+                let side =
+                    |rng: &mut SplitMix64| rng.symmetric(1.0).signum() * (0.8 + rng.next_f64());
+                let (dx, dy, scale) = match (rng.next_f64() * 3.0) as usize {
                     0 => (side(&mut rng), rng.symmetric(1.5), 1.0),
                     1 => (rng.symmetric(1.5), side(&mut rng), 1.0),
                     _ => {
-                        let s = 1.7 + 1.5 * rng.uniform();
-                        let s = if rng.uniform() < 0.5 { s } else { 1.0 / s };
+                        let s = 1.7 + 1.5 * rng.next_f64();
+                        let s = if rng.next_f64() < 0.5 { s } else { 1.0 / s };
                         (rng.symmetric(0.3), rng.symmetric(0.3), s)
                     }
                 };
@@ -171,8 +156,8 @@ fn photo_windows(path: &Path, faces: &[AnnotatedFace], seed: u64) -> Vec<Window>
             if made >= BACKGROUND {
                 break;
             }
-            let d = (8f64.ln() + rng.uniform() * (largest / 8.0).ln()).exp();
-            let centre = Point::new(rng.uniform() * w, rng.uniform() * h);
+            let d = (8f64.ln() + rng.next_f64() * (largest / 8.0).ln()).exp();
+            let centre = Point::new(rng.next_f64() * w, rng.next_f64() * h);
             let near_a_face = eyes.iter().any(|&(m, fd)| {
                 let ratio = d / fd;
                 m.distance(centre) < 0.7 * fd.max(d) && ratio > 0.6 && ratio < 1.6
@@ -180,7 +165,7 @@ fn photo_windows(path: &Path, faces: &[AnnotatedFace], seed: u64) -> Vec<Window>
             if near_a_face {
                 continue;
             }
-            let roll = if rng.uniform() < 0.5 {
+            let roll = if rng.next_f64() < 0.5 {
                 0.0
             } else {
                 rng.symmetric(0.35)

@@ -5,3 +5,6 @@ pub mod dataset;
 pub mod eval;
 pub mod landmark_crops;
 pub mod train;
+
+/// The trainers' seeded generator, for the example programs that cut training data.
+pub use crate::rng::SplitMix64;
