@@ -548,7 +548,8 @@ fn the_thorough_search_reports_no_false_faces() {
 /// rolled by 30 degrees each way, and shrunk until its box is about 45 pixels wide (the default
 /// smallest face is 40), is found once and measured within 0.06 of the upright, full-size
 /// face's shear; rolled by 45 degrees it is found, and its estimate is either that close or
-/// refused (`NETWORK_DETECTOR_MAX_ROLL`: two of these six were read as sheared by 0.16-0.22).
+/// refused (`NETWORK_DETECTOR_MAX_ROLL`: two of these six were read as sheared by 0.16-0.22);
+/// rolled by 30 and sheared by 0.3 it is refused (`ROLLED_HEAD`).
 #[test]
 fn the_network_detector_finds_small_and_rolled_faces() {
     use unshear::warp::rotate::rotate_gray;
@@ -571,6 +572,22 @@ fn the_network_detector_finds_small_and_rolled_faces() {
                 None => assert_eq!(degrees.abs(), 45.0, "{}: {degrees}", path.display()),
             }
         }
+        // Rolled by 30 degrees and then sheared by 0.3: strong roll and strong shear together
+        // are what a head rolled further is misread as, so the estimate is refused.
+        let (turned, _) = rotate_gray(&gray, 30f64.to_radians()).expect("rotate");
+        let turned = Unshear::gray(&sheared(&DynamicImage::ImageLuma8(turned), 0.3));
+        let report = unshear.estimate_gray(&turned);
+        assert_eq!(
+            report.faces.len(),
+            1,
+            "{}: rolled and sheared",
+            path.display()
+        );
+        assert_eq!(report.k, None, "{}: rolled and sheared", path.display());
+        assert_eq!(
+            report.faces[0].refused,
+            Some(unshear::pipeline::Refusal::UnreliablePose)
+        );
         // Shrunk so that the face box is about 45 px wide.
         let width = upright.faces[0].face_box.width;
         let scale = 45.0 / width;
