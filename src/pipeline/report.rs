@@ -24,10 +24,12 @@ pub enum Refusal {
     /// The located points are not laid out as a face's are (eye distance against the box, the
     /// nose and mouth below the eyes), so whatever they found is not a face.
     NotFaceLike,
-    /// A head tipped far back or forward, or foreshortened and rolled, or (found by the network
-    /// detector) rolled beyond [`NETWORK_DETECTOR_MAX_ROLL`](crate::pipeline::NETWORK_DETECTOR_MAX_ROLL):
-    /// its shear reading is unreliable (see
-    /// [`TRUSTED_NOSE_DROP`](crate::pipeline::confidence::TRUSTED_NOSE_DROP)).
+    /// A head tipped far back or forward, or foreshortened and rolled (see
+    /// [`TRUSTED_NOSE_DROP`](crate::pipeline::confidence::TRUSTED_NOSE_DROP)), or, found by the
+    /// network detector, rolled beyond
+    /// [`NETWORK_DETECTOR_MAX_ROLL`](crate::pipeline::NETWORK_DETECTOR_MAX_ROLL) or rolled beyond
+    /// [`ROLLED_HEAD`](crate::pipeline::ROLLED_HEAD) and measured strongly sheared: its shear
+    /// reading is unreliable.
     UnreliablePose,
 }
 
