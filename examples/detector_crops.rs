@@ -40,7 +40,7 @@ use std::path::{Path, PathBuf};
 use image::GrayImage;
 use rayon::prelude::*;
 use unshear::detect::boxes::{CROP_EYE_DISTANCES, EYES_ABOVE_CENTRE};
-use unshear::dev::dataset::{AnnotatedFace, CaltechWebFaces, FaceDataset};
+use unshear::dev::dataset::{by_image, AnnotatedFace, CaltechWebFaces, FaceDataset};
 use unshear::dev::SplitMix64;
 use unshear::geometry::Point;
 
@@ -253,11 +253,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         return Err("usage: detector_crops CALTECH_DIR OUT_DIR".into());
     };
     let out = PathBuf::from(out);
-    let mut photos: std::collections::BTreeMap<PathBuf, Vec<AnnotatedFace>> = Default::default();
-    for f in CaltechWebFaces::new(data).faces()? {
-        photos.entry(f.image.clone()).or_default().push(f);
-    }
-    let photos: Vec<(PathBuf, Vec<AnnotatedFace>)> = photos
+    let photos: Vec<(PathBuf, Vec<AnnotatedFace>)> = by_image(CaltechWebFaces::new(data).faces()?)
         .into_iter()
         .filter(|(_, faces)| faces.iter().all(|f| f.eye_distance() < MAX_EYE_DISTANCE))
         .collect();

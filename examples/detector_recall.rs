@@ -25,7 +25,7 @@ use std::time::Instant;
 
 use image::GrayImage;
 use unshear::detect::{Proposal, ProposalNet, ProposalParams};
-use unshear::dev::dataset::{AnnotatedFace, CaltechWebFaces, FaceDataset};
+use unshear::dev::dataset::{by_image, AnnotatedFace, CaltechWebFaces, FaceDataset};
 use unshear::geometry::{Point, Shear};
 use unshear::warp::{try_apply_shear, Canvas, Interpolation};
 
@@ -162,11 +162,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if args.iter().any(|a| a == "--time-only") {
         return Ok(());
     }
-    let mut photos: std::collections::BTreeMap<PathBuf, Vec<AnnotatedFace>> = Default::default();
-    for f in CaltechWebFaces::new(data).faces()? {
-        photos.entry(f.image.clone()).or_default().push(f);
-    }
-    let photos: Vec<(PathBuf, Vec<AnnotatedFace>)> = photos
+    let photos: Vec<(PathBuf, Vec<AnnotatedFace>)> = by_image(CaltechWebFaces::new(data).faces()?)
         .into_iter()
         .filter(|(_, faces)| {
             faces

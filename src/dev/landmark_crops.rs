@@ -190,7 +190,7 @@ fn face_samples(
         let (re, le) = (version.point(face.right_eye), version.point(face.left_eye));
         let midpoint = re.midpoint(le);
         let residual = if rng.next_f64() < 0.5 {
-            (2.0 * rng.next_f64() - 1.0) * WIDE_SHEAR
+            rng.symmetric(WIDE_SHEAR)
         } else {
             NARROW_SHEAR * normal(&mut rng)
         };
@@ -299,7 +299,7 @@ pub fn export_crops(
                 // The sheared copy's shear, from a generator of the image's own.
                 let mut rng =
                     SplitMix64::new(options.seed.wrapping_add(first as u64).rotate_left(17));
-                let photo_k = (2.0 * rng.next_f64() - 1.0) * PHOTO_SHEAR;
+                let photo_k = rng.symmetric(PHOTO_SHEAR);
                 let mut versions = vec![];
                 if let Some(v) = Version::sheared(&gray, photo_k) {
                     versions.push(v);
@@ -419,7 +419,7 @@ fn negative_samples(
             }
         }
         for b in boxes {
-            let residual = (2.0 * rng.next_f64() - 1.0) * WIDE_SHEAR;
+            let residual = rng.symmetric(WIDE_SHEAR);
             let roll = ROLL_JITTER * normal(rng);
             let eyes = Point::new(
                 b.x + 0.5

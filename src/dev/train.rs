@@ -242,8 +242,8 @@ fn face_crops(
                 (0.0, 0.0)
             } else {
                 (
-                    MAX_TRANSLATION * (2.0 * rng.next_f64() - 1.0),
-                    MAX_TRANSLATION * (2.0 * rng.next_f64() - 1.0),
+                    rng.symmetric(MAX_TRANSLATION),
+                    rng.symmetric(MAX_TRANSLATION),
                 )
             };
             let mut pixels = vec![0f32; PATCH_SIZE * PATCH_SIZE];

@@ -270,9 +270,7 @@ pub(crate) mod test_support {
     /// White noise in [-1, 1), deterministic in `seed`.
     pub fn random_patch(n: usize, seed: u64) -> Vec<f32> {
         let mut rng = SplitMix64::new(seed);
-        (0..n * n)
-            .map(|_| (2.0 * rng.next_f64() - 1.0) as f32)
-            .collect()
+        (0..n * n).map(|_| rng.symmetric(1.0) as f32).collect()
     }
 
     /// An "eye": a dark disc with a light ring, `(dx, dy)` from the patch centre, on a

@@ -404,66 +404,60 @@ impl Unshear {
     ) {
         let mut second_looks = Vec::new();
         for (d, logit) in windows {
-            if !proposal_is_new(&d, found) {
-                continue;
-            }
-            let start = FaceStart {
-                k: start_k.unwrap_or(d.view_k),
-                roll: d.view_roll,
-                budget: Some(budget),
-            };
-            let Some(r) = self.judge_window(gray, &d, logit, start) else {
-                continue;
-            };
-            if proposal_shows(&d, &r) {
-                found.push((d.face_box, Some(r)));
-            } else {
-                let second = Detection {
-                    view_k: start_k.unwrap_or(r.k_measured),
-                    view_roll: r.roll_degrees.to_radians(),
-                    ..proposal_detection(
-                        r.right_eye.midpoint(r.left_eye),
-                        r.right_eye.distance(r.left_eye),
-                    )
-                };
-                second_looks.push((second, logit));
+            match self.judge_window(gray, &d, logit, start_k, budget, found) {
+                Some(r) if proposal_shows(&d, &r) => found.push((d.face_box, Some(r))),
+                Some(r) => {
+                    let landed = Detection {
+                        view_k: r.k_measured,
+                        view_roll: r.roll_degrees.to_radians(),
+                        ..proposal_detection(
+                            r.right_eye.midpoint(r.left_eye),
+                            r.right_eye.distance(r.left_eye),
+                        )
+                    };
+                    second_looks.push((landed, logit));
+                }
+                None => {}
             }
         }
         // After every window's own look, so that a second look landing on part of a face
         // cannot hide that face's own window.
         for (d, logit) in second_looks {
-            if !proposal_is_new(&d, found) {
-                continue;
-            }
-            let start = FaceStart {
-                k: d.view_k,
-                roll: d.view_roll,
-                budget: Some(budget),
-            };
-            if let Some(r) = self.judge_window(gray, &d, logit, start) {
-                if proposal_shows(&d, &r) {
-                    found.push((d.face_box, Some(r)));
-                }
+            let r = self.judge_window(gray, &d, logit, start_k, budget, found);
+            if let Some(r) = r.filter(|r| proposal_shows(&d, r)) {
+                found.push((d.face_box, Some(r)));
             }
         }
     }
 
     /// The face the landmark network finds from the network detector's window `d` (with
-    /// `logit`) started from `start`, if it is a face ([`window_is_face`]); strongly rolled
-    /// ones refused ([`NETWORK_DETECTOR_MAX_ROLL`]).
+    /// `logit`), started from its shear (or `start_k`) and roll with `budget`, if the window
+    /// may show a face not in `found` ([`proposal_is_new`]) and the network finds a face
+    /// ([`window_is_face`]); strongly rolled ones refused ([`NETWORK_DETECTOR_MAX_ROLL`]), and
+    /// rolled ones measured strongly sheared ([`ROLLED_HEAD`]).
     fn judge_window(
         &self,
         gray: &GrayImage,
         d: &Detection,
         logit: f32,
-        start: FaceStart,
+        start_k: Option<f64>,
+        budget: Budget,
+        found: &[(Rect, Option<FaceReport>)],
     ) -> Option<FaceReport> {
+        if !proposal_is_new(d, found) {
+            return None;
+        }
+        let start = FaceStart {
+            k: start_k.unwrap_or(d.view_k),
+            roll: d.view_roll,
+            budget: Some(budget),
+        };
         let mut r = self.estimate_face(gray, d.face_box, start)?;
         let (roll, k) = (r.roll_degrees.abs(), r.k_measured.abs());
         let rolled_and_sheared = roll > ROLLED_HEAD && k > ROLLED_HEAD_MAX_SHEAR;
         if (roll > NETWORK_DETECTOR_MAX_ROLL || rolled_and_sheared) && r.k.is_some() {
-            // Strongly rolled faces found by the network detector are measured from its
-            // rough roll, and can be read as less rolled and sheared instead.
+            // Rolled faces found by the network detector are measured from its rough roll,
+            // and can be read as less rolled and sheared instead.
             r.k = None;
             r.refused = Some(Refusal::UnreliablePose);
         }
