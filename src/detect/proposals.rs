@@ -1280,8 +1280,8 @@ mod tests {
         assert!(detector.regresses_size());
     }
 
-    #[test]
-    fn the_built_in_detector_finds_the_fixture_face_and_its_shear_at_any_shear() {
+    /// A Yale fixture and its face as the landmark network locates it.
+    fn fixture_and_its_face() -> (GrayImage, crate::locate::network::LocatedFace) {
         let path = concat!(
             env!("CARGO_MANIFEST_DIR"),
             "/tests/fixtures/faces/subject01.normal.jpeg"
@@ -1292,24 +1292,44 @@ mod tests {
         let mut ws = crate::locate::network::Workspace::default();
         let face =
             crate::locate::network::locate(&landmarks, &gray, start, &mut ws).expect("a face");
+        (gray, face)
+    }
+
+    /// `gray` sheared by `k` about its middle row (the canvas grown to hold it), with where
+    /// `face`'s eyes' midpoint lands and its eye distance.
+    fn sheared_with_eyes(
+        gray: &GrayImage,
+        face: &crate::locate::network::LocatedFace,
+        k: f64,
+    ) -> (GrayImage, Point, f64) {
+        let shear = crate::geometry::Shear::about_middle(k, gray.height());
+        let (sheared, placement) = crate::warp::try_apply_shear(
+            &image::DynamicImage::ImageLuma8(gray.clone()),
+            shear,
+            crate::warp::Interpolation::Linear,
+            crate::warp::Canvas::Expand,
+        )
+        .expect("sheared");
+        let moved = |p: Point| placement.from_frame(shear.apply(p));
+        let eyes = moved(face.right_eye).midpoint(moved(face.left_eye));
+        (
+            sheared.into_luma8(),
+            eyes,
+            face.right_eye.distance(face.left_eye),
+        )
+    }
+
+    #[test]
+    fn the_built_in_detector_finds_the_fixture_face_and_its_shear_at_any_shear() {
+        let (gray, face) = fixture_and_its_face();
         let net = ProposalNet::embedded_detector().expect("built-in detector");
         let params = ProposalParams {
             min_eye_distance: 15.2,
             ..net.default_params()
         };
         for k in [0.0, 0.4, -0.4] {
-            let shear = crate::geometry::Shear::about_middle(k, gray.height());
-            let (sheared, placement) = crate::warp::try_apply_shear(
-                &image::DynamicImage::ImageLuma8(gray.clone()),
-                shear,
-                crate::warp::Interpolation::Linear,
-                crate::warp::Canvas::Expand,
-            )
-            .expect("sheared");
-            let moved = |p: Point| placement.from_frame(shear.apply(p));
-            let eyes = moved(face.right_eye).midpoint(moved(face.left_eye));
-            let distance = face.right_eye.distance(face.left_eye);
-            let proposals = net.propose(&sheared.into_luma8(), &params);
+            let (sheared, eyes, distance) = sheared_with_eyes(&gray, &face, k);
+            let proposals = net.propose(&sheared, &params);
             // The eyes within a quarter of an eye distance, the size within 20%, and the
             // shear read to 0.2.
             let hit = proposals.iter().any(|p| {
@@ -1324,31 +1344,11 @@ mod tests {
 
     #[test]
     fn the_built_in_classifier_proposes_the_fixture_face_at_any_shear() {
-        let path = concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/tests/fixtures/faces/subject01.normal.jpeg"
-        );
-        let gray = image::open(path).expect("fixture").into_luma8();
-        // The fixture's eyes as the landmark network locates them.
-        let landmarks = crate::locate::network::LandmarkNet::embedded().expect("built-in network");
-        let start = landmarks.frame(Point::new(160.0, 100.0), 60.0, 0.0, 0.0);
-        let mut ws = crate::locate::network::Workspace::default();
-        let face =
-            crate::locate::network::locate(&landmarks, &gray, start, &mut ws).expect("a face");
+        let (gray, face) = fixture_and_its_face();
         let net = ProposalNet::embedded().expect("built-in proposal classifier");
         for k in [0.0, 0.4, -0.4] {
-            let shear = crate::geometry::Shear::about_middle(k, gray.height());
-            let (sheared, placement) = crate::warp::try_apply_shear(
-                &image::DynamicImage::ImageLuma8(gray.clone()),
-                shear,
-                crate::warp::Interpolation::Linear,
-                crate::warp::Canvas::Expand,
-            )
-            .expect("sheared");
-            let moved = |p: Point| placement.from_frame(shear.apply(p));
-            let eyes = moved(face.right_eye).midpoint(moved(face.left_eye));
-            let distance = face.right_eye.distance(face.left_eye);
-            let proposals = net.propose(&sheared.into_luma8(), &ProposalParams::default());
+            let (sheared, eyes, distance) = sheared_with_eyes(&gray, &face, k);
+            let proposals = net.propose(&sheared, &ProposalParams::default());
             // A window that starts the network on this face: its eyes within half an eye
             // distance, its size within the pyramid's step and the jitter trained on.
             let hit = proposals.iter().any(|p| {
