@@ -40,7 +40,7 @@ use std::path::{Path, PathBuf};
 use image::GrayImage;
 use rayon::prelude::*;
 use unshear::detect::boxes::{CROP_EYE_DISTANCES, EYES_ABOVE_CENTRE};
-use unshear::dev::dataset::{by_image, AnnotatedFace, CaltechWebFaces, FaceDataset};
+use unshear::dev::dataset::{photos_with_small_faces, AnnotatedFace, CaltechWebFaces, FaceDataset};
 use unshear::dev::SplitMix64;
 use unshear::geometry::Point;
 
@@ -253,10 +253,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         return Err("usage: detector_crops CALTECH_DIR OUT_DIR".into());
     };
     let out = PathBuf::from(out);
-    let photos: Vec<(PathBuf, Vec<AnnotatedFace>)> = by_image(CaltechWebFaces::new(data).faces()?)
-        .into_iter()
-        .filter(|(_, faces)| faces.iter().all(|f| f.eye_distance() < MAX_EYE_DISTANCE))
-        .collect();
+    let photos = photos_with_small_faces(CaltechWebFaces::new(data).faces()?, MAX_EYE_DISTANCE);
     std::fs::create_dir_all(&out)?;
     let create = |name: &str| -> std::io::Result<std::io::BufWriter<std::fs::File>> {
         Ok(std::io::BufWriter::new(std::fs::File::create(

@@ -25,7 +25,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
-use unshear::dev::dataset::{by_image, AnnotatedFace, CaltechWebFaces, FaceDataset};
+use unshear::dev::dataset::{photos_with_small_faces, AnnotatedFace, CaltechWebFaces, FaceDataset};
 use unshear::dev::SplitMix64;
 use unshear::geometry::{Point, Shear};
 use unshear::locate::network::{frame_around_eyes, CropFrame};
@@ -184,10 +184,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         return Err("usage: proposal_crops CALTECH_DIR OUT_DIR".into());
     };
     let out = PathBuf::from(out);
-    let photos: Vec<(PathBuf, Vec<AnnotatedFace>)> = by_image(CaltechWebFaces::new(data).faces()?)
-        .into_iter()
-        .filter(|(_, faces)| faces.iter().all(|f| f.eye_distance() < MAX_EYE_DISTANCE))
-        .collect();
+    let photos = photos_with_small_faces(CaltechWebFaces::new(data).faces()?, MAX_EYE_DISTANCE);
     std::fs::create_dir_all(&out)?;
     let mut crops = std::io::BufWriter::new(std::fs::File::create(out.join("crops.u8"))?);
     let mut labels = std::io::BufWriter::new(std::fs::File::create(out.join("labels.u8"))?);

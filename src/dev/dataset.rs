@@ -133,6 +133,19 @@ pub fn by_image(faces: Vec<AnnotatedFace>) -> Vec<(PathBuf, Vec<AnnotatedFace>)>
     map.into_iter().collect()
 }
 
+/// [`by_image`] kept to the photos all of whose faces have eyes less than `max_eye_distance`
+/// apart: the networks' training photos (40 px), which share no photo with the faces the
+/// accuracy tables measure (40 px and more).
+pub fn photos_with_small_faces(
+    faces: Vec<AnnotatedFace>,
+    max_eye_distance: f64,
+) -> Vec<(PathBuf, Vec<AnnotatedFace>)> {
+    by_image(faces)
+        .into_iter()
+        .filter(|(_, faces)| faces.iter().all(|f| f.eye_distance() < max_eye_distance))
+        .collect()
+}
+
 /// One face of a 68-point landmark file (iBUG/dlib numbering, 0-based: 36-41 the subject's
 /// right eye (image left), 42-47 the left eye, 31-35 the lower nose with the nostrils near 32
 /// and 34).
@@ -453,5 +466,27 @@ mod tests {
         assert_eq!(groups[0].0, PathBuf::from("a"));
         assert_eq!(groups[1].1.len(), 2);
         assert_eq!(groups[1].1[1].right_eye.x, 3.0);
+    }
+
+    #[test]
+    fn small_face_photos_are_those_without_a_face_at_the_limit() {
+        let face = |image: &str, distance: f64| AnnotatedFace {
+            image: PathBuf::from(image),
+            right_eye: Point::new(0.0, 0.0),
+            left_eye: Point::new(distance, 0.0),
+            nose: None,
+            mouth: None,
+        };
+        let faces = vec![
+            face("b", 20.0),
+            face("a", 39.0),
+            face("b", 40.0),
+            face("c", 10.0),
+        ];
+        let kept: Vec<PathBuf> = photos_with_small_faces(faces, 40.0)
+            .into_iter()
+            .map(|(p, _)| p)
+            .collect();
+        assert_eq!(kept, [PathBuf::from("a"), PathBuf::from("c")]);
     }
 }
