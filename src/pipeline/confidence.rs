@@ -209,8 +209,8 @@ pub const TYPICAL_NOSE_DROP: f64 = 0.77;
 /// eyes, so a head tipped far back (a short drop) magnifies every misplaced point, and a drop
 /// far longer than faces have means a head bowed over or eyes located on the brows. Chosen with
 /// the development eval and checked on the landmark network's own training photos (faces 25-40
-/// px, none measured): it refuses one face (at all nine shears) more than 0.15 off in each,
-/// and 0.1% of the estimates within 0.10 (docs/accuracy.md#gross-errors).
+/// px, none measured): in each it refuses one face read more than 0.15 off (at one shear and
+/// at six), and 0.1% of the estimates within 0.10 (docs/accuracy.md#gross-errors).
 pub const TRUSTED_NOSE_DROP: (f64, f64) = (0.45, 1.15);
 
 /// Largest foreshortening-times-roll a face may show, `(TYPICAL_NOSE_DROP - nose drop) x |roll
