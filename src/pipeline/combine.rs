@@ -1,6 +1,6 @@
 //! Faces found more than once reduced to one, and the image's shear from its faces.
 
-use super::report::FaceReport;
+use super::report::{FaceReport, Refusal};
 use crate::geometry::Rect;
 use crate::stats::weighted_median;
 
@@ -60,7 +60,38 @@ pub(crate) fn most_confident_of_overlapping(
             kept.push(f);
         }
     }
+    refuse_nested(&mut kept);
     kept
+}
+
+/// Refuses (as [`Refusal::NotFaceLike`]) the accepted estimate of a face when one's box holds
+/// both eyes located in another face kept beside it that is credible too (accepted, or refused
+/// only for its pose): two people's faces cannot both fit in one face box, so one of the two is
+/// not a face, and which one cannot be told from the pair. Seen on heads rolled 45 degrees and
+/// sheared: a box around head and shoulders whose located "eyes" were a shoulder and the real
+/// face, accepted with high confidence, while the real face inside it was refused for its pose.
+/// A face refused for any other reason is a weak claim and refuses nothing.
+fn refuse_nested(kept: &mut [(Rect, Option<FaceReport>)]) {
+    let credible = |r: &FaceReport| matches!(r.refused, None | Some(Refusal::UnreliablePose));
+    let nested: Vec<usize> = (0..kept.len())
+        .filter(|&i| {
+            let (a_box, Some(a)) = &kept[i] else {
+                return false;
+            };
+            a.k.is_some()
+                && kept.iter().enumerate().any(|(j, (b_box, b))| {
+                    b.as_ref().is_some_and(|b| {
+                        i != j && credible(b) && (holds_eyes(a_box, b) || holds_eyes(b_box, a))
+                    })
+                })
+        })
+        .collect();
+    for i in nested {
+        if let Some(r) = kept[i].1.as_mut() {
+            r.k = None;
+            r.refused = Some(Refusal::NotFaceLike);
+        }
+    }
 }
 
 /// [`combined_shear`] of the faces in `found` that gave an estimate.

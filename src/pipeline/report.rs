@@ -22,7 +22,8 @@ pub enum Refusal {
     /// is not seen (see [`pipeline::confidence::plausibility`](crate::pipeline::confidence::plausibility)).
     OutsideImage,
     /// The located points are not laid out as a face's are (eye distance against the box, the
-    /// nose and mouth below the eyes), so whatever they found is not a face.
+    /// nose and mouth below the eyes), so whatever they found is not a face; or the face's box
+    /// holds another face's eyes, or the other way round, and one of the two is not a face.
     NotFaceLike,
     /// A head tipped far back or forward, or foreshortened and rolled (see
     /// [`TRUSTED_NOSE_DROP`](crate::pipeline::confidence::TRUSTED_NOSE_DROP)), or, found by the

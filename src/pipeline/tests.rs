@@ -300,6 +300,62 @@ fn overlapping_faces_keep_the_most_confident_estimate() {
 }
 
 #[test]
+fn a_face_whose_box_holds_another_credible_face_is_refused() {
+    // A head-and-shoulders box (accepted) whose box holds the eyes of a smaller face beside its
+    // own located eyes; the smaller face refused for its pose, for low confidence, or accepted.
+    let outer = FaceReport {
+        face_box: Rect::new(0.0, 0.0, 300.0, 300.0),
+        right_eye: Point::new(100.0, 120.0),
+        left_eye: Point::new(200.0, 120.0),
+        ..face(Some(0.25), 0.9)
+    };
+    let inner = |k: Option<f64>, refused: Option<Refusal>| FaceReport {
+        face_box: Rect::new(200.0, 190.0, 80.0, 80.0),
+        right_eye: Point::new(220.0, 220.0),
+        left_eye: Point::new(250.0, 220.0),
+        refused,
+        ..face(k, if k.is_some() { 0.8 } else { 0.0 })
+    };
+    let run = |inner: FaceReport| {
+        let kept = most_confident_of_overlapping(vec![
+            (outer.face_box, Some(outer)),
+            (inner.face_box, Some(inner)),
+        ]);
+        assert_eq!(kept.len(), 2, "two different faces, neither a duplicate");
+        (kept[0].1.unwrap(), kept[1].1.unwrap())
+    };
+    let (o, i) = run(inner(None, Some(Refusal::UnreliablePose)));
+    assert_eq!((o.k, o.refused), (None, Some(Refusal::NotFaceLike)));
+    assert_eq!(o.k_measured, 0.25, "the measurement is kept");
+    assert_eq!(i.refused, Some(Refusal::UnreliablePose));
+    let (o, i) = run(inner(Some(0.1), None));
+    assert_eq!(
+        (o.k, i.k),
+        (None, None),
+        "both accepted: neither can be told right"
+    );
+    assert_eq!(i.refused, Some(Refusal::NotFaceLike));
+    let (o, _) = run(inner(None, Some(Refusal::LowConfidence)));
+    assert_eq!(
+        (o.k, o.refused),
+        (Some(0.25), None),
+        "a weak claim refuses nothing"
+    );
+    // Side by side, neither box holding the other's eyes: both stand.
+    let beside = FaceReport {
+        face_box: Rect::new(400.0, 0.0, 300.0, 300.0),
+        right_eye: Point::new(500.0, 120.0),
+        left_eye: Point::new(600.0, 120.0),
+        ..outer
+    };
+    let kept = most_confident_of_overlapping(vec![
+        (outer.face_box, Some(outer)),
+        (beside.face_box, Some(beside)),
+    ]);
+    assert!(kept.iter().all(|(_, r)| r.unwrap().k == Some(0.25)));
+}
+
+#[test]
 fn a_proposal_counts_only_for_the_face_its_window_shows() {
     let window = proposal_detection(Point::new(200.0, 100.0), 40.0);
     let (eyes, distance) = proposal_eyes(&window);
