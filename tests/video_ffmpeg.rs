@@ -7,8 +7,12 @@
 
 mod common;
 
+#[cfg(unix)]
+use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+#[cfg(unix)]
+use std::process::{Child, ChildStdout};
+use std::process::{Command, Output, Stdio};
 
 use image::{imageops, DynamicImage, GrayImage, Luma};
 use unshear::video::y4m::{Y4mReader, Y4mWriter};
@@ -34,11 +38,24 @@ fn have_ffmpeg(test: &str) -> bool {
     };
     let ok = runs("ffmpeg") && runs("ffprobe");
     if !ok {
-        let note =
-            format!("skipped {test}: ffmpeg/ffprobe not found on PATH (apt-get install ffmpeg)\n");
-        let _ = std::io::Write::write_all(&mut std::io::stderr(), note.as_bytes());
+        note_skip(
+            test,
+            "ffmpeg/ffprobe not found on PATH (apt-get install ffmpeg)",
+        );
     }
     ok
+}
+
+/// Writes "skipped `test`: `why`" to stderr directly, past the harness's capture.
+fn note_skip(test: &str, why: &str) {
+    let note = format!("skipped {test}: {why}\n");
+    let _ = std::io::Write::write_all(&mut std::io::stderr(), note.as_bytes());
+}
+
+/// A temp dir for `test` if ffmpeg, ffprobe and ffmpeg's `encoder` are there; else notes the skip.
+fn ffmpeg_test_dir(encoder: &str, test: &str) -> Option<tempfile::TempDir> {
+    (have_ffmpeg(test) && has_encoder(encoder, test))
+        .then(|| tempfile::tempdir().expect("temp dir"))
 }
 
 /// Whether this ffmpeg has `encoder`; otherwise notes the skip.
@@ -51,8 +68,7 @@ fn has_encoder(encoder: &str, test: &str) -> bool {
         .lines()
         .any(|l| l.split_whitespace().nth(1) == Some(encoder));
     if !listed {
-        let note = format!("skipped {test}: this ffmpeg has no {encoder} encoder\n");
-        let _ = std::io::Write::write_all(&mut std::io::stderr(), note.as_bytes());
+        note_skip(test, &format!("this ffmpeg has no {encoder} encoder"));
     }
     listed
 }
@@ -148,6 +164,26 @@ fn ffmpeg(args: &[&str], stdin: Option<&[u8]>) {
     );
 }
 
+/// The ffmpeg arguments that read lavfi's generated `source` as an input.
+fn lavfi(source: &str) -> [&str; 4] {
+    ["-f", "lavfi", "-i", source]
+}
+
+/// Encodes the lavfi `sources` with output `options` to `out`: ultrafast H.264, AAC if `sound`.
+fn lavfi_clip(out: &Path, sources: &[&str], options: &[&str], sound: bool) {
+    let mut args = Vec::new();
+    for source in sources {
+        args.extend(lavfi(source));
+    }
+    args.extend(options);
+    args.extend(["-c:v", "libx264", "-preset", "ultrafast"]);
+    if sound {
+        args.extend(["-c:a", "aac"]);
+    }
+    args.push(path(out));
+    ffmpeg(&args, None);
+}
+
 /// A short H.264 + AAC MP4 of the sheared face, flagged for display rotated by 90 degrees
 /// (by `-display_rotation` where this ffmpeg has it, as 7.0 does, else by the `rotate` tag
 /// of a stream copy, which only older versions honour).
@@ -165,13 +201,9 @@ fn make_mp4(dir: &Path) -> PathBuf {
     if display_rotation {
         args.extend(["-noautorotate", "-display_rotation", "90"]);
     }
+    args.extend(["-i", path(&y4m)]);
+    args.extend(lavfi("sine=frequency=440:sample_rate=48000:duration=0.8"));
     args.extend([
-        "-i",
-        path(&y4m),
-        "-f",
-        "lavfi",
-        "-i",
-        "sine=frequency=440:sample_rate=48000:duration=0.8",
         "-map",
         "0:v",
         "-map",
@@ -247,6 +279,49 @@ fn unshear_cmd() -> Command {
     Command::new(env!("CARGO_BIN_EXE_unshear"))
 }
 
+/// `unshear video <input> -o <out>`, ready for more arguments.
+fn video_cmd(input: &Path, out: &Path) -> Command {
+    let mut cmd = unshear_cmd();
+    cmd.arg("video").arg(input).arg("-o").arg(out);
+    cmd
+}
+
+/// Runs `cmd` to its end and asserts that it succeeded, showing its stderr if not.
+fn run_ok(cmd: &mut Command) -> Output {
+    let run = cmd.output().expect("unshear");
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    run
+}
+
+/// Starts `unshear video <input> -o <out> --json` and reads its first JSON line (frames flow).
+#[cfg(unix)]
+fn start_json(input: &Path, out: &Path) -> (Child, BufReader<ChildStdout>, String) {
+    let mut child = video_cmd(input, out)
+        .arg("--json")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn");
+    let mut stdout = BufReader::new(child.stdout.take().expect("stdout"));
+    let mut first = String::new();
+    stdout.read_line(&mut first).expect("first line");
+    (child, stdout, first)
+}
+
+/// Sends `signal` (such as `-INT`) to process `pid` with kill(1), asserting that it went.
+#[cfg(unix)]
+fn kill(signal: &str, pid: u32) {
+    let killed = Command::new("kill")
+        .args([signal, &pid.to_string()])
+        .status()
+        .expect("kill");
+    assert!(killed.success());
+}
+
 /// Files this tool leaves while writing (`.unshear-*`).
 fn temporaries(dir: &Path) -> Vec<String> {
     std::fs::read_dir(dir)
@@ -255,6 +330,12 @@ fn temporaries(dir: &Path) -> Vec<String> {
         .map(|e| e.file_name().to_string_lossy().into_owned())
         .filter(|n| n.starts_with(".unshear-"))
         .collect()
+}
+
+/// Asserts that a failed run (`what`) left neither `out` nor a temporary file in `dir`.
+fn assert_nothing_left(dir: &Path, out: &Path, what: &str) {
+    assert!(!out.exists(), "{what}: no output under the final name");
+    assert_eq!(temporaries(dir), Vec::<String>::new());
 }
 
 /// The per-frame `k` of a `--json` file.
@@ -266,25 +347,24 @@ fn ks(json: &Path) -> Vec<Option<f64>> {
         .collect()
 }
 
+/// Asserts that a face was found in every frame and measured within 0.06 of the shear `K`.
+fn assert_sheared_by_k(ks: &[Option<f64>]) {
+    for (i, k) in ks.iter().enumerate() {
+        let k = k.unwrap_or_else(|| panic!("no face in frame {i}"));
+        assert!((k - K).abs() < 0.06, "frame {i}: k {k}, sheared by {K}");
+    }
+}
+
 #[test]
 fn mp4_in_mp4_out_keeps_sound_frames_duration_and_rotation() {
-    if !have_ffmpeg("mp4_in_mp4_out") || !has_encoder("libx264", "mp4_in_mp4_out") {
+    let Some(dir) = ffmpeg_test_dir("libx264", "mp4_in_mp4_out") else {
         return;
-    }
-    let dir = tempfile::tempdir().expect("temp dir");
+    };
     let clip = make_mp4(dir.path());
     let out = dir.path().join("fixed.mp4");
     let json = dir.path().join("frames.jsonl");
-    let run = unshear_cmd()
-        .args(["video"])
-        .arg(&clip)
-        .arg("-o")
-        .arg(&out)
-        .arg(format!("--json={}", json.display()))
-        .output()
-        .expect("unshear");
+    let run = run_ok(video_cmd(&clip, &out).arg(format!("--json={}", json.display())));
     let stderr = String::from_utf8_lossy(&run.stderr);
-    assert!(run.status.success(), "{stderr}");
     assert!(stderr.contains("1 audio copied"), "{stderr}");
 
     let (src, dst) = (streams(&clip), streams(&out));
@@ -312,19 +392,15 @@ fn mp4_in_mp4_out_keeps_sound_frames_duration_and_rotation() {
     // The face's shear, measured on every frame.
     let ks = ks(&json);
     assert_eq!(ks.len(), FRAMES);
-    for (i, k) in ks.iter().enumerate() {
-        let k = k.unwrap_or_else(|| panic!("no face in frame {i}"));
-        assert!((k - K).abs() < 0.06, "frame {i}: k {k}, sheared by {K}");
-    }
+    assert_sheared_by_k(&ks);
     // The output is corrected: its frames read near 0 (and it is still a face).
     let again = dir.path().join("again.jsonl");
-    let check = unshear_cmd()
-        .arg("video")
-        .arg(&out)
-        .arg(format!("--json={}", again.display()))
-        .output()
-        .expect("unshear");
-    assert!(check.status.success());
+    run_ok(
+        unshear_cmd()
+            .arg("video")
+            .arg(&out)
+            .arg(format!("--json={}", again.display())),
+    );
     let residual: Vec<f64> = crate::ks(&again).into_iter().flatten().collect();
     assert!(
         residual.len() >= FRAMES - 2,
@@ -337,10 +413,9 @@ fn mp4_in_mp4_out_keeps_sound_frames_duration_and_rotation() {
 
 #[test]
 fn ten_bit_hevc_stays_ten_bit() {
-    if !have_ffmpeg("ten_bit_hevc") || !has_encoder("libx265", "ten_bit_hevc") {
+    let Some(dir) = ffmpeg_test_dir("libx265", "ten_bit_hevc") else {
         return;
-    }
-    let dir = tempfile::tempdir().expect("temp dir");
+    };
     let clip = dir.path().join("hdr.mp4");
     // 10-bit HLG in BT.2020, as phones record HDR.
     ffmpeg(
@@ -367,19 +442,10 @@ fn ten_bit_hevc_stays_ten_bit() {
     );
     let out = dir.path().join("fixed.mp4");
     let json = dir.path().join("frames.jsonl");
-    let run = unshear_cmd()
-        .arg("video")
-        .arg(&clip)
-        .arg("-o")
-        .arg(&out)
-        .arg(format!("--json={}", json.display()))
-        .args(["--preset", "ultrafast"])
-        .output()
-        .expect("unshear");
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
+    let run = run_ok(
+        video_cmd(&clip, &out)
+            .arg(format!("--json={}", json.display()))
+            .args(["--preset", "ultrafast"]),
     );
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert!(
@@ -393,10 +459,7 @@ fn ten_bit_hevc_stays_ten_bit() {
     assert_eq!(v["color_transfer"], "arib-std-b67");
     assert_eq!(v["color_primaries"], "bt2020");
     assert_eq!(number(&v["nb_frames"]), 10.0);
-    for (i, k) in ks(&json).iter().enumerate() {
-        let k = k.unwrap_or_else(|| panic!("no face in frame {i}"));
-        assert!((k - K).abs() < 0.06, "frame {i}: k {k}");
-    }
+    assert_sheared_by_k(&ks(&json));
     // The output's samples use the two low bits: it was not cut to 8 bits on the way.
     let decoded = Command::new("ffmpeg")
         .args(["-hide_banner", "-loglevel", "error", "-i"])
@@ -425,20 +488,7 @@ fn ten_bit_y4m_is_corrected_at_its_depth() {
     let frames = frames();
     std::fs::write(&input, y4m10(&frames[..8])).expect("write");
     let out = dir.path().join("out.y4m");
-    let run = unshear_cmd()
-        .arg("video")
-        .arg(&input)
-        .arg("-o")
-        .arg(&out)
-        .arg("--json")
-        .env("PATH", "")
-        .output()
-        .expect("unshear");
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    let run = run_ok(video_cmd(&input, &out).arg("--json").env("PATH", ""));
     let lines = common::json_lines(&run.stdout);
     assert_eq!(lines.len(), 8);
     let bytes = std::fs::read(&out).expect("output");
@@ -459,10 +509,9 @@ fn ten_bit_y4m_is_corrected_at_its_depth() {
 
 #[test]
 fn truncated_input_and_failing_encoder_leave_no_output() {
-    if !have_ffmpeg("truncated_input") || !has_encoder("libx264", "truncated_input") {
+    let Some(dir) = ffmpeg_test_dir("libx264", "truncated_input") else {
         return;
-    }
-    let dir = tempfile::tempdir().expect("temp dir");
+    };
     let clip = make_mp4(dir.path());
     // Media data at the end, the index first: the cut file opens and breaks mid-stream.
     let faststart = dir.path().join("faststart.mp4");
@@ -491,8 +540,7 @@ fn truncated_input_and_failing_encoder_leave_no_output() {
         (&clip, Some("nosuchcodec")),
     ] {
         let out = dir.path().join("out.mp4");
-        let mut cmd = unshear_cmd();
-        cmd.arg("video").arg(input).arg("-o").arg(&out);
+        let mut cmd = video_cmd(input, &out);
         if let Some(codec) = extra {
             cmd.args(["--codec", codec]);
         }
@@ -503,8 +551,7 @@ fn truncated_input_and_failing_encoder_leave_no_output() {
             stderr.contains("ffmpeg") || stderr.contains("ffprobe"),
             "{stderr}"
         );
-        assert!(!out.exists(), "no output under the final name");
-        assert_eq!(temporaries(dir.path()), Vec::<String>::new());
+        assert_nothing_left(dir.path(), &out, &input.display().to_string());
     }
 }
 
@@ -513,11 +560,7 @@ fn missing_ffmpeg_is_a_clear_error_and_y4m_still_works() {
     let dir = tempfile::tempdir().expect("temp dir");
     let clip = dir.path().join("clip.mp4");
     std::fs::write(&clip, b"\0\0\0\x18ftypmp42 not really a video").expect("write");
-    let run = unshear_cmd()
-        .arg("video")
-        .arg(&clip)
-        .arg("-o")
-        .arg(dir.path().join("out.mp4"))
+    let run = video_cmd(&clip, &dir.path().join("out.mp4"))
         .env("PATH", "")
         .output()
         .expect("unshear");
@@ -539,75 +582,32 @@ fn missing_ffmpeg_is_a_clear_error_and_y4m_still_works() {
     // y4m in and out needs no ffmpeg.
     let y4m = dir.path().join("in.y4m");
     std::fs::write(&y4m, y4m8(&frames()[..3])).expect("write");
-    let run = unshear_cmd()
-        .arg("video")
-        .arg(&y4m)
-        .arg("-o")
-        .arg(dir.path().join("out.y4m"))
-        .env("PATH", "")
-        .output()
-        .expect("unshear");
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    run_ok(video_cmd(&y4m, &dir.path().join("out.y4m")).env("PATH", ""));
 }
 
 /// Ctrl-C while encoding: exit 130, no output, no temporary file, no ffmpeg left running.
 #[cfg(unix)]
 #[test]
 fn interrupt_ends_ffmpeg_and_leaves_nothing() {
-    use std::io::{BufRead, BufReader};
-    if !have_ffmpeg("interrupt_ends_ffmpeg") || !has_encoder("libx264", "interrupt_ends_ffmpeg") {
+    let Some(dir) = ffmpeg_test_dir("libx264", "interrupt_ends_ffmpeg") else {
         return;
-    }
-    let dir = tempfile::tempdir().expect("temp dir");
+    };
     // A longer clip (10 s), so that the run is still going when the signal comes.
     let clip = dir.path().join("long.mp4");
-    ffmpeg(
+    lavfi_clip(
+        &clip,
         &[
-            "-f",
-            "lavfi",
-            "-i",
             "testsrc2=size=320x240:rate=25",
-            "-f",
-            "lavfi",
-            "-i",
             "sine=frequency=440:sample_rate=48000",
-            "-t",
-            "10",
-            "-c:v",
-            "libx264",
-            "-preset",
-            "ultrafast",
-            "-c:a",
-            "aac",
-            path(&clip),
         ],
-        None,
+        &["-t", "10"],
+        true,
     );
     let out = dir.path().join("out.mp4");
-    let mut child = unshear_cmd()
-        .arg("video")
-        .arg(&clip)
-        .arg("-o")
-        .arg(&out)
-        .arg("--json")
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("spawn");
     // The first JSON line: the handler is installed and both ffmpeg children run.
-    let mut stdout = BufReader::new(child.stdout.take().expect("stdout"));
-    let mut first = String::new();
-    stdout.read_line(&mut first).expect("first line");
+    let (child, _stdout, first) = start_json(&clip, &out);
     assert!(first.contains("\"frame\":0"), "{first}");
-    let killed = Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
-        .status()
-        .expect("kill");
-    assert!(killed.success());
+    kill("-INT", child.id());
     let output = child.wait_with_output().expect("wait");
     assert_eq!(
         output.status.code(),
@@ -615,26 +615,14 @@ fn interrupt_ends_ffmpeg_and_leaves_nothing() {
         "{}",
         String::from_utf8_lossy(&output.stderr)
     );
-    assert!(!out.exists());
-    assert_eq!(temporaries(dir.path()), Vec::<String>::new());
+    assert_nothing_left(dir.path(), &out, "interrupted");
     // No process still has the clip or the temporary file on its command line.
-    let needle = dir.path().to_string_lossy().into_owned();
-    let mut left = Vec::new();
-    if let Ok(procs) = std::fs::read_dir("/proc") {
-        for p in procs.filter_map(|e| e.ok()) {
-            if let Ok(cmdline) = std::fs::read(p.path().join("cmdline")) {
-                let cmdline = String::from_utf8_lossy(&cmdline).replace('\0', " ");
-                if cmdline.contains(&needle) && cmdline.contains("ffmpeg") {
-                    left.push(cmdline);
-                }
-            }
-        }
-    }
+    let left = processes_with(&dir.path().to_string_lossy(), "ffmpeg");
     assert!(left.is_empty(), "still running: {left:?}");
 }
 
-/// The processes whose command line holds `needle` and `marker` (Linux's /proc).
-#[cfg(target_os = "linux")]
+/// The processes whose command line holds `needle` and `marker` (none where there is no /proc).
+#[cfg(unix)]
 fn processes_with(needle: &str, marker: &str) -> Vec<(u32, String)> {
     let mut found = Vec::new();
     if let Ok(procs) = std::fs::read_dir("/proc") {
@@ -658,27 +646,15 @@ fn processes_with(needle: &str, marker: &str) -> Vec<(u32, String)> {
 #[cfg(target_os = "linux")]
 #[test]
 fn ffmpeg_dying_half_way_leaves_nothing() {
-    use std::io::{BufRead, BufReader};
-    if !have_ffmpeg("ffmpeg_dying_half_way") || !has_encoder("libx264", "ffmpeg_dying_half_way") {
+    let Some(dir) = ffmpeg_test_dir("libx264", "ffmpeg_dying_half_way") else {
         return;
-    }
-    let dir = tempfile::tempdir().expect("temp dir");
+    };
     let clip = dir.path().join("long.mp4");
-    ffmpeg(
-        &[
-            "-f",
-            "lavfi",
-            "-i",
-            "testsrc2=size=320x240:rate=25",
-            "-t",
-            "10",
-            "-c:v",
-            "libx264",
-            "-preset",
-            "ultrafast",
-            path(&clip),
-        ],
-        None,
+    lavfi_clip(
+        &clip,
+        &["testsrc2=size=320x240:rate=25"],
+        &["-t", "10"],
+        false,
     );
     let needle = dir.path().to_string_lossy().into_owned();
     // The decoder's command line has -xerror; the encoder's reads the pipe ("-i -").
@@ -687,26 +663,10 @@ fn ffmpeg_dying_half_way_leaves_nothing() {
         ("encoder", "yuv4mpegpipe -i -", "encoding"),
     ] {
         let out = dir.path().join("out.mp4");
-        let mut child = unshear_cmd()
-            .arg("video")
-            .arg(&clip)
-            .arg("-o")
-            .arg(&out)
-            .arg("--json")
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .expect("spawn");
-        let mut stdout = BufReader::new(child.stdout.take().expect("stdout"));
-        let mut first = String::new();
-        stdout.read_line(&mut first).expect("first line");
+        let (child, mut stdout, _) = start_json(&clip, &out);
         let targets = processes_with(&needle, marker);
         assert_eq!(targets.len(), 1, "{victim}: {targets:?}");
-        let killed = Command::new("kill")
-            .args(["-KILL", &targets[0].0.to_string()])
-            .status()
-            .expect("kill");
-        assert!(killed.success());
+        kill("-KILL", targets[0].0);
         std::io::copy(&mut stdout, &mut std::io::sink()).expect("drain");
         let output = child.wait_with_output().expect("wait");
         let stderr = String::from_utf8_lossy(&output.stderr);
@@ -716,8 +676,7 @@ fn ffmpeg_dying_half_way_leaves_nothing() {
                 || stderr.contains(&format!("ffmpeg {says}")),
             "{victim}: {stderr}"
         );
-        assert!(!out.exists(), "{victim}: no output under the final name");
-        assert_eq!(temporaries(dir.path()), Vec::<String>::new());
+        assert_nothing_left(dir.path(), &out, victim);
         let left: Vec<_> = processes_with(&needle, "ffmpeg")
             .into_iter()
             .filter(|(_, c)| !c.contains("kill"))
@@ -731,25 +690,18 @@ fn ffmpeg_dying_half_way_leaves_nothing() {
 /// at the 22.6 fps average, the frame at 1 s would show at 1.3 s).
 #[test]
 fn variable_frame_rate_keeps_picture_and_sound_in_step() {
-    if !have_ffmpeg("variable_frame_rate") || !has_encoder("libx264", "variable_frame_rate") {
+    let Some(dir) = ffmpeg_test_dir("libx264", "variable_frame_rate") else {
         return;
-    }
-    let dir = tempfile::tempdir().expect("temp dir");
+    };
     let clip = dir.path().join("vfr.mp4");
-    ffmpeg(
+    lavfi_clip(
+        &clip,
         &[
-            "-f",
-            "lavfi",
-            "-i",
             "testsrc2=size=320x240:rate=30:duration=1",
-            "-f",
-            "lavfi",
-            "-i",
             "testsrc2=size=320x240:rate=10:duration=1",
-            "-f",
-            "lavfi",
-            "-i",
             "sine=frequency=440:sample_rate=48000:duration=2",
+        ],
+        &[
             "-filter_complex",
             "[0:v][1:v]concat=n=2:v=1:a=0[v]",
             "-map",
@@ -758,26 +710,12 @@ fn variable_frame_rate_keeps_picture_and_sound_in_step() {
             "2:a",
             "-fps_mode",
             "vfr",
-            "-c:v",
-            "libx264",
-            "-preset",
-            "ultrafast",
-            "-c:a",
-            "aac",
-            path(&clip),
         ],
-        None,
+        true,
     );
     let out = dir.path().join("out.mp4");
-    let run = unshear_cmd()
-        .arg("video")
-        .arg(&clip)
-        .arg("-o")
-        .arg(&out)
-        .output()
-        .expect("unshear");
+    let run = run_ok(&mut video_cmd(&clip, &out));
     let stderr = String::from_utf8_lossy(&run.stderr);
-    assert!(run.status.success(), "{stderr}");
     assert!(stderr.contains("variable frame rate"), "{stderr}");
     let (src, dst) = (streams(&clip), streams(&out));
     let v = stream(&dst, "video");
