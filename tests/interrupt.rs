@@ -4,9 +4,11 @@
 
 #![cfg(unix)]
 
-use std::io::{BufRead, BufReader};
+mod common;
+
+use std::io::BufRead;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::Command;
 
 const IMAGES: usize = 400;
 
@@ -52,18 +54,13 @@ fn interrupt_after_first_result(
     out: &Path,
     signal: &str,
 ) -> (std::process::ExitStatus, Vec<serde_json::Value>, String) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_unshear"))
-        .args(["correct", "--json", "--k", "0.1", "--jobs", "2"])
-        .arg(inputs)
-        .arg("--out-dir")
-        .arg(out)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("spawn");
-    let mut stdout = BufReader::new(child.stdout.take().expect("stdout"));
-    let mut first = String::new();
-    stdout.read_line(&mut first).expect("first line");
+    let (child, stdout, first) = common::spawn_and_read_first_line(
+        Command::new(env!("CARGO_BIN_EXE_unshear"))
+            .args(["correct", "--json", "--k", "0.1", "--jobs", "2"])
+            .arg(inputs)
+            .arg("--out-dir")
+            .arg(out),
+    );
     let status = Command::new("kill")
         .arg(format!("-{signal}"))
         .arg(child.id().to_string())

@@ -8,7 +8,7 @@
 mod common;
 
 #[cfg(unix)]
-use std::io::{BufRead, BufReader};
+use std::io::BufReader;
 use std::path::{Path, PathBuf};
 #[cfg(unix)]
 use std::process::{Child, ChildStdout};
@@ -300,16 +300,7 @@ fn run_ok(cmd: &mut Command) -> Output {
 /// Starts `unshear video <input> -o <out> --json` and reads its first JSON line (frames flow).
 #[cfg(unix)]
 fn start_json(input: &Path, out: &Path) -> (Child, BufReader<ChildStdout>, String) {
-    let mut child = video_cmd(input, out)
-        .arg("--json")
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("spawn");
-    let mut stdout = BufReader::new(child.stdout.take().expect("stdout"));
-    let mut first = String::new();
-    stdout.read_line(&mut first).expect("first line");
-    (child, stdout, first)
+    common::spawn_and_read_first_line(video_cmd(input, out).arg("--json"))
 }
 
 /// Sends `signal` (such as `-INT`) to process `pid` with kill(1), asserting that it went.

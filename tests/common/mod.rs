@@ -1,6 +1,8 @@
 //! Helpers shared by the integration tests.
 
+use std::io::{BufRead, BufReader};
 use std::path::PathBuf;
+use std::process::{Child, ChildStdout, Command, Stdio};
 
 /// The keys of a face object in the `--json` output of `estimate` and `video`, sorted.
 #[allow(dead_code)] // Not every test file uses every helper.
@@ -54,4 +56,19 @@ pub fn shared_data(rel: &str) -> Option<PathBuf> {
         let _ = std::io::Write::write_all(&mut std::io::stderr(), note.as_bytes());
         None
     }
+}
+
+/// Spawns `cmd` with its output piped and reads the first line it prints (for tests that act
+/// while it runs), returning the child, the rest of its output and that line.
+#[allow(dead_code)] // Not every test file uses every helper.
+pub fn spawn_and_read_first_line(cmd: &mut Command) -> (Child, BufReader<ChildStdout>, String) {
+    let mut child = cmd
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn");
+    let mut stdout = BufReader::new(child.stdout.take().expect("stdout"));
+    let mut first = String::new();
+    stdout.read_line(&mut first).expect("first line");
+    (child, stdout, first)
 }
