@@ -419,39 +419,72 @@ impl ProposalNet {
             return (Vec::new(), 0, 0);
         }
         let (cols, rows) = ((w - n) / self.stride + 1, (h - n) / self.stride + 1);
+        // Tiles are scored as tasks of their own: a 1080p frame's largest level, half the
+        // pyramid's pixels, is six tiles, which would otherwise keep one core busy alone.
+        let tiles: Vec<(usize, usize)> = (0..rows)
+            .step_by(TILE)
+            .flat_map(|r| (0..cols).step_by(TILE).map(move |c| (r, c)))
+            .collect();
+        let scored: Vec<Vec<f32>> = tiles
+            .par_iter()
+            .map(|&(first_row, first_col)| {
+                let size = (TILE.min(rows - first_row), TILE.min(cols - first_col));
+                BUFFERS.with(|buffers| {
+                    self.score_tile(
+                        level,
+                        (first_row, first_col),
+                        size,
+                        &mut buffers.borrow_mut(),
+                    )
+                })
+            })
+            .collect();
         let mut scores = vec![0f32; cols * rows * per];
-        let mut buffers = Buffers::default();
-        let raw = level.as_raw();
-        for first_row in (0..rows).step_by(TILE) {
-            for first_col in (0..cols).step_by(TILE) {
-                let (tile_rows, tile_cols) =
-                    (TILE.min(rows - first_row), TILE.min(cols - first_col));
-                let (top, left) = (first_row * self.stride, first_col * self.stride);
-                let height = (tile_rows - 1) * self.stride + n;
-                let width = (tile_cols - 1) * self.stride + n;
-                let input = &mut buffers.input;
-                input.resize(1, height, width);
-                for (y, row) in input.data.chunks_exact_mut(width).enumerate() {
-                    let start = (top + y) * w + left;
-                    for (o, &v) in row.iter_mut().zip(&raw[start..start + width]) {
-                        // The trainer's scaling: grey levels over 255, centred on 0.5, times 4.
-                        *o = (f32::from(v) / 255.0 - 0.5) * 4.0;
-                    }
-                }
-                let out = self.forward(&mut buffers);
-                debug_assert_eq!((out.height, out.width), (tile_rows, tile_cols));
-                let plane = tile_rows * tile_cols;
-                for (channel, map) in out.data.chunks_exact(plane).take(per).enumerate() {
-                    for (y, values) in map.chunks_exact(tile_cols).enumerate() {
-                        let at = ((first_row + y) * cols + first_col) * per + channel;
-                        for (o, &v) in scores[at..].iter_mut().step_by(per).zip(values) {
-                            *o = v;
-                        }
-                    }
-                }
+        for (&(first_row, first_col), tile) in tiles.iter().zip(&scored) {
+            let tile_cols = TILE.min(cols - first_col);
+            for (y, values) in tile.chunks_exact(tile_cols * per).enumerate() {
+                let at = ((first_row + y) * cols + first_col) * per;
+                scores[at..at + values.len()].copy_from_slice(values);
             }
         }
         (scores, cols, rows)
+    }
+
+    /// The outputs of the `tile_rows x tile_cols` windows from window `(first_row, first_col)`
+    /// of `level`, row-major, each window's outputs together.
+    fn score_tile(
+        &self,
+        level: &GrayImage,
+        (first_row, first_col): (usize, usize),
+        (tile_rows, tile_cols): (usize, usize),
+        buffers: &mut Buffers,
+    ) -> Vec<f32> {
+        let w = level.width() as usize;
+        let n = self.window;
+        let per = self.outputs.len();
+        let raw = level.as_raw();
+        let (top, left) = (first_row * self.stride, first_col * self.stride);
+        let height = (tile_rows - 1) * self.stride + n;
+        let width = (tile_cols - 1) * self.stride + n;
+        let input = &mut buffers.input;
+        input.resize(1, height, width);
+        for (y, row) in input.data.chunks_exact_mut(width).enumerate() {
+            let start = (top + y) * w + left;
+            for (o, &v) in row.iter_mut().zip(&raw[start..start + width]) {
+                // The trainer's scaling: grey levels over 255, centred on 0.5, times 4.
+                *o = (f32::from(v) / 255.0 - 0.5) * 4.0;
+            }
+        }
+        let out = self.forward(buffers);
+        debug_assert_eq!((out.height, out.width), (tile_rows, tile_cols));
+        let plane = tile_rows * tile_cols;
+        let mut scores = vec![0f32; plane * per];
+        for (channel, map) in out.data.chunks_exact(plane).take(per).enumerate() {
+            for (o, &v) in scores[channel..].iter_mut().step_by(per).zip(map) {
+                *o = v;
+            }
+        }
+        scores
     }
 
     /// Runs the layers on `buffers.input`; returns the last activation.
@@ -508,12 +541,12 @@ impl ProposalNet {
         if (large || self.regresses_size()) && reduced {
             // `resize` keeps an intermediate of 16 bytes per pixel of the photo's width times the
             // level's height (83 MB for a level of a 12 MP photo, more than all the rest of
-            // the search); `thumbnail` averages areas into the level directly. It is also about
-            // five times faster (the triangle filter of a 1080p frame's levels took longer
-            // than the detector's convolutions), and its box average is the blur the detector's
-            // training windows have (`examples/detector_crops.rs`), so the detector's levels
-            // are always made with it.
-            image::imageops::thumbnail(source, lw, lh)
+            // the search); an area average (`thumbnail`'s, bit for bit) makes the level directly
+            // and is many times faster (the triangle filter of a 1080p frame's levels took
+            // longer than the detector's convolutions), and its box average is the blur the
+            // detector's training windows have (`examples/detector_crops.rs`), so the
+            // detector's levels are always made with it.
+            crate::resample::shrink_by_area(source, lw, lh)
         } else {
             image::imageops::resize(source, lw, lh, image::imageops::FilterType::Triangle)
         }
@@ -765,6 +798,14 @@ fn with_edge_border(image: &GrayImage, border: u32) -> GrayImage {
         .unwrap_or_else(|| unreachable!("the buffer has the image's size"))
 }
 
+thread_local! {
+    /// The activations and im2col matrices of one tile, per thread and reused by every level
+    /// and frame: made afresh for each level, their first touch (page faults, the kernel zeroing
+    /// pages) cost as much as the strided convolutions themselves.
+    static BUFFERS: std::cell::RefCell<Buffers> = std::cell::RefCell::new(Buffers::default());
+}
+
+/// The buffers one tile's forward pass works in.
 #[derive(Debug, Default)]
 struct Buffers {
     input: Tensor,

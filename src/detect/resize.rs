@@ -180,7 +180,7 @@ pub fn shrunk_to_width(gray: &GrayImage, width: u32) -> (Cow<'_, GrayImage>, f64
     let scale = f64::from(w) / f64::from(width);
     let height = ((f64::from(h) * f64::from(width) / f64::from(w)).round() as u32).max(1);
     (
-        Cow::Owned(image::imageops::thumbnail(gray, width, height)),
+        Cow::Owned(crate::resample::shrink_by_area(gray, width, height)),
         scale,
     )
 }

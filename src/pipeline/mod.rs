@@ -29,6 +29,7 @@ mod search;
 mod tests;
 
 use image::{DynamicImage, GrayImage};
+use rayon::prelude::*;
 
 pub use combine::{combined_shear, consensus, Consensus, FACE_UNCERTAINTY};
 pub use correct::FACE_REGION_MARGIN;
@@ -403,9 +404,10 @@ impl Unshear {
         found: &mut Vec<(Rect, Option<FaceReport>)>,
     ) {
         let mut second_looks = Vec::new();
-        for (d, logit) in windows {
-            match self.judge_window(gray, &d, logit, start_k, budget, found) {
-                Some(r) if proposal_shows(&d, &r) => found.push((d.face_box, Some(r))),
+        let looks = self.look_at_windows(gray, &windows, start_k, budget, found);
+        for ((d, logit), look) in windows.iter().zip(looks) {
+            match look {
+                Some(r) if proposal_shows(d, &r) => found.push((d.face_box, Some(r))),
                 Some(r) => {
                     let landed = Detection {
                         view_k: r.k_measured,
@@ -415,38 +417,100 @@ impl Unshear {
                             r.right_eye.distance(r.left_eye),
                         )
                     };
-                    second_looks.push((landed, logit));
+                    second_looks.push((landed, *logit));
                 }
                 None => {}
             }
         }
         // After every window's own look, so that a second look landing on part of a face
         // cannot hide that face's own window.
-        for (d, logit) in second_looks {
-            let r = self.judge_window(gray, &d, logit, start_k, budget, found);
-            if let Some(r) = r.filter(|r| proposal_shows(&d, r)) {
+        let looks = self.look_at_windows(gray, &second_looks, start_k, budget, found);
+        for ((d, _), look) in second_looks.iter().zip(looks) {
+            if let Some(r) = look.filter(|r| proposal_shows(d, r)) {
                 found.push((d.face_box, Some(r)));
             }
         }
     }
 
+    /// [`Self::look_at_window`] for each of `windows` in order, `None` for a window on a face
+    /// in `found` ([`proposal_is_new`]) when its turn comes, exactly as looking at one window
+    /// after the other and adding each face found to `found` before the next (as `commit`
+    /// does). Looks are taken in waves on the thread pool: a wave holds the windows up to the
+    /// next one not yet looked at whose box overlaps an earlier window's (that window's face,
+    /// once found, may hide it), so a frame's separate windows (nine on a frame of noise) do
+    /// not wait for each other on one core, and no look is spent on a window its stronger
+    /// neighbour's face will hide. Each look depends only on its window, so the results are
+    /// those of one window at a time.
+    fn look_at_windows(
+        &self,
+        gray: &GrayImage,
+        windows: &[(Detection, f32)],
+        start_k: Option<f64>,
+        budget: Budget,
+        found: &[(Rect, Option<FaceReport>)],
+    ) -> Vec<Option<FaceReport>> {
+        let mut found_now = found.to_vec();
+        // Each window's look once taken (`Some`), and each window's outcome once decided.
+        let mut taken: Vec<Option<Option<FaceReport>>> = vec![None; windows.len()];
+        let mut looks: Vec<Option<FaceReport>> = Vec::with_capacity(windows.len());
+        while looks.len() < windows.len() {
+            let next = looks.len();
+            // The wave: from `next` on, every window not looked at yet and still new that no
+            // earlier window still to be decided (and still new) overlaps.
+            let wave: Vec<usize> = (next..windows.len())
+                .filter(|&j| {
+                    let (d, _) = &windows[j];
+                    let overlaps = |e: &Detection| e.face_box.intersection(&d.face_box).is_some();
+                    taken[j].is_none()
+                        && proposal_is_new(d, &found_now)
+                        && (next..j).all(|i| {
+                            let (e, _) = &windows[i];
+                            !overlaps(e) || !proposal_is_new(e, &found_now)
+                        })
+                })
+                .collect();
+            let seen: Vec<(usize, Option<FaceReport>)> = wave
+                .par_iter()
+                .map(|&j| {
+                    let (d, logit) = &windows[j];
+                    (j, self.look_at_window(gray, d, *logit, start_k, budget))
+                })
+                .collect();
+            for (j, look) in seen {
+                taken[j] = Some(look);
+            }
+            // Decided in order as far as the looks taken reach (a window no longer new needs
+            // none).
+            while let Some((d, _)) = windows.get(looks.len()) {
+                let look = if !proposal_is_new(d, &found_now) {
+                    None
+                } else if let Some(look) = taken[looks.len()].take() {
+                    look
+                } else {
+                    break;
+                };
+                if let Some(r) = look.filter(|r| proposal_shows(d, r)) {
+                    found_now.push((d.face_box, Some(r)));
+                }
+                looks.push(look);
+            }
+        }
+        looks
+    }
+
     /// The face the landmark network finds from the network detector's window `d` (with
-    /// `logit`), started from its shear (or `start_k`) and roll with `budget`, if the window
-    /// may show a face not in `found` ([`proposal_is_new`]) and the network finds a face
-    /// ([`window_is_face`]); strongly rolled ones refused ([`NETWORK_DETECTOR_MAX_ROLL`]), and
-    /// rolled ones measured strongly sheared ([`ROLLED_HEAD`]).
-    fn judge_window(
+    /// `logit`), started from its shear (or `start_k`) and roll with `budget`, if the network
+    /// finds a face there ([`window_is_face`]); strongly rolled ones refused
+    /// ([`NETWORK_DETECTOR_MAX_ROLL`]), and rolled ones measured strongly sheared
+    /// ([`ROLLED_HEAD`]).
+    fn look_at_window(
         &self,
         gray: &GrayImage,
         d: &Detection,
         logit: f32,
         start_k: Option<f64>,
         budget: Budget,
-        found: &[(Rect, Option<FaceReport>)],
     ) -> Option<FaceReport> {
-        if !proposal_is_new(d, found) {
-            return None;
-        }
         let start = FaceStart {
             k: start_k.unwrap_or(d.view_k),
             roll: d.view_roll,

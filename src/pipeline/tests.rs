@@ -599,3 +599,51 @@ fn a_window_off_its_face_gets_a_second_look_from_where_the_network_landed() {
         "{r:?}"
     );
 }
+
+/// Looking at a frame's windows in parallel waves gives what looking at one after the other
+/// gives: a window on the face a stronger window found is skipped (its look `None`), the
+/// others are looked at, in the windows' order.
+#[test]
+fn windows_looked_at_in_waves_are_judged_as_one_at_a_time() {
+    let u = built(Config::default());
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/example/face-k0.30.png");
+    let gray = Unshear::gray(&image::open(path).expect("bundled example"));
+    let face = u.estimate_gray(&gray).faces[0];
+    let eyes = face.right_eye.midpoint(face.left_eye);
+    let distance = face.right_eye.distance(face.left_eye);
+    let at = |dx: f64, dy: f64| {
+        let d = Detection {
+            view_k: 0.3,
+            ..proposal_detection(Point::new(eyes.x + dx, eyes.y + dy), distance)
+        };
+        (d, 5.0_f32)
+    };
+    let (w, h) = (f64::from(gray.width()), f64::from(gray.height()));
+    let windows = vec![
+        // Blank corners first, then the face, then the face again a little to the side.
+        at(-eyes.x + 0.3 * distance, -eyes.y + 0.3 * distance),
+        at(0.0, 0.0),
+        at(w - eyes.x - 0.3 * distance, h - eyes.y - 0.3 * distance),
+        at(0.15 * distance, 0.05 * distance),
+    ];
+    let budget = u.config.network_budget;
+    let mut sequential = Vec::new();
+    let mut found: Vec<(Rect, Option<FaceReport>)> = Vec::new();
+    for (d, logit) in &windows {
+        let look = proposal_is_new(d, &found)
+            .then(|| u.look_at_window(&gray, d, *logit, None, budget))
+            .flatten();
+        if let Some(r) = look.filter(|r| proposal_shows(d, r)) {
+            found.push((d.face_box, Some(r)));
+        }
+        sequential.push(look);
+    }
+    assert!(sequential[1].is_some(), "the face's window finds it");
+    assert!(
+        sequential[3].is_none(),
+        "the second window on it is skipped"
+    );
+    let waves = u.look_at_windows(&gray, &windows, None, budget, &[]);
+    assert_eq!(waves, sequential);
+}
