@@ -412,6 +412,17 @@ impl ProposalNet {
     /// Every output ([`Self::outputs`]) for every window of [`Self::score_map`], as
     /// `(outputs, columns, rows)`: the windows row-major, each window's outputs together.
     pub fn output_map(&self, level: &GrayImage) -> (Vec<f32>, usize, usize) {
+        self.output_map_in(level, None)
+    }
+
+    /// [`Self::output_map`], its tiles scored one after the other in `buffers` if given (a
+    /// large photo's levels: the memory of one tile's activations, freed with `buffers`), else
+    /// as parallel tasks, each in its thread's own buffers, kept for the next level and frame.
+    fn output_map_in(
+        &self,
+        level: &GrayImage,
+        buffers: Option<&mut Buffers>,
+    ) -> (Vec<f32>, usize, usize) {
         let (w, h) = (level.width() as usize, level.height() as usize);
         let n = self.window;
         let per = self.outputs.len();
@@ -425,20 +436,22 @@ impl ProposalNet {
             .step_by(TILE)
             .flat_map(|r| (0..cols).step_by(TILE).map(move |c| (r, c)))
             .collect();
-        let scored: Vec<Vec<f32>> = tiles
-            .par_iter()
-            .map(|&(first_row, first_col)| {
-                let size = (TILE.min(rows - first_row), TILE.min(cols - first_col));
-                BUFFERS.with(|buffers| {
-                    self.score_tile(
-                        level,
-                        (first_row, first_col),
-                        size,
-                        &mut buffers.borrow_mut(),
-                    )
+        let size =
+            |(first_row, first_col)| (TILE.min(rows - first_row), TILE.min(cols - first_col));
+        let scored: Vec<Vec<f32>> = match buffers {
+            Some(buffers) => tiles
+                .iter()
+                .map(|&first| self.score_tile(level, first, size(first), buffers))
+                .collect(),
+            None => tiles
+                .par_iter()
+                .map(|&first| {
+                    BUFFERS.with(|buffers| {
+                        self.score_tile(level, first, size(first), &mut buffers.borrow_mut())
+                    })
                 })
-            })
-            .collect();
+                .collect(),
+        };
         let mut scores = vec![0f32; cols * rows * per];
         for (&(first_row, first_col), tile) in tiles.iter().zip(&scored) {
             let tile_cols = TILE.min(cols - first_col);
@@ -511,15 +524,16 @@ impl ProposalNet {
     /// `min_logit`, moved and scaled by what the network regresses. The level is padded by half
     /// a window of repeated edge pixels (as the trainer's renderer reads past a photo's edge),
     /// so that a face at the edge of the image, or filling it, is still seen whole by some
-    /// window.
+    /// window. Scored in `buffers` if given (see [`Self::output_map_in`]).
     fn level_proposals(
         &self,
         gray: &GrayImage,
         eye_distance: f64,
         min_logit: f32,
+        buffers: Option<&mut Buffers>,
     ) -> Vec<Proposal> {
         let level = self.level(gray, gray, eye_distance);
-        self.proposals_on_level(gray.dimensions(), &level, eye_distance, min_logit)
+        self.proposals_on_level(gray.dimensions(), &level, eye_distance, min_logit, buffers)
     }
 
     /// The size of `gray`'s pyramid level for eyes `eye_distance` image pixels apart.
@@ -560,6 +574,7 @@ impl ProposalNet {
         level: &GrayImage,
         eye_distance: f64,
         min_logit: f32,
+        buffers: Option<&mut Buffers>,
     ) -> Vec<Proposal> {
         let (w, h) = (f64::from(w), f64::from(h));
         let (lw, lh) = level.dimensions();
@@ -567,7 +582,7 @@ impl ProposalNet {
         let border = self.window / 2;
         let padded = with_edge_border(level, border as u32);
         let (sx, sy) = (w / f64::from(lw), h / f64::from(lh));
-        let (outputs, cols, _) = self.output_map(&padded);
+        let (outputs, cols, _) = self.output_map_in(&padded, buffers);
         // Level pixels per window eye distance.
         let per_eye_distance = n / CROP_EYE_DISTANCES;
         let ch = self.channels;
@@ -622,6 +637,8 @@ impl ProposalNet {
         };
         let mut built: Vec<std::sync::Arc<GrayImage>> = Vec::new();
         if large {
+            // One tile's buffers for every level, freed when the photo's levels are done.
+            let mut buffers = Buffers::default();
             let mut out = Vec::with_capacity(eye_distances.len());
             for &d in eye_distances {
                 let size = self.level_size(dims, d);
@@ -629,7 +646,7 @@ impl ProposalNet {
                     Some(i) => self.level(gray, &built[i], d),
                     None => self.level(gray, gray, d),
                 };
-                out.push(self.proposals_on_level(dims, &level, d, min_logit));
+                out.push(self.proposals_on_level(dims, &level, d, min_logit, Some(&mut buffers)));
                 built.push(std::sync::Arc::new(level));
                 // A level is a source for the levels at most half its size; with the levels
                 // shrinking, the last three serve every step down to 1.26.
@@ -653,7 +670,7 @@ impl ProposalNet {
                 built.push(level.clone());
                 let slot = &results[i];
                 scope.spawn(move |_| {
-                    let found = self.proposals_on_level(dims, &level, d, min_logit);
+                    let found = self.proposals_on_level(dims, &level, d, min_logit, None);
                     if let Ok(mut s) = slot.lock() {
                         *s = found;
                     }
@@ -694,13 +711,19 @@ impl ProposalNet {
         // one at a time for a large photo, whose levels and tile buffers would otherwise be
         // alive at once on every core (as the pipeline searches a large photo's views).
         let large = u64::from(gray.width()) * u64::from(gray.height()) > LARGE_PHOTO_PIXELS;
-        let level = |&d: &f64| self.level_proposals(gray, d, params.min_logit);
         let per_level: Vec<Vec<Proposal>> = if self.regresses_size() {
             self.chained_levels(gray, &eye_distances, params.min_logit, large)
         } else if large {
-            eye_distances.iter().map(level).collect()
+            let mut buffers = Buffers::default();
+            eye_distances
+                .iter()
+                .map(|&d| self.level_proposals(gray, d, params.min_logit, Some(&mut buffers)))
+                .collect()
         } else {
-            eye_distances.par_iter().map(level).collect()
+            eye_distances
+                .par_iter()
+                .map(|&d| self.level_proposals(gray, d, params.min_logit, None))
+                .collect()
         };
         let mut found: Vec<Proposal> = per_level.into_iter().flatten().collect();
         found.sort_by(|a, b| b.logit.total_cmp(&a.logit));
@@ -1152,8 +1175,8 @@ mod tests {
             ("roll", -0.1),
         ]);
         let gray = noise(200, 150, 3);
-        let a = plain.level_proposals(&gray, 20.0, 0.0);
-        let b = moved.level_proposals(&gray, 20.0, 0.0);
+        let a = plain.level_proposals(&gray, 20.0, 0.0, None);
+        let b = moved.level_proposals(&gray, 20.0, 0.0, None);
         assert_eq!(a.len(), b.len());
         assert!(!a.is_empty());
         for (a, b) in a.iter().zip(&b) {
@@ -1175,7 +1198,7 @@ mod tests {
         }
         // A runaway regression is clamped, a shear of 1e30 to the largest reported.
         let wild = constant_net(&[("logit", 2.0), ("k", 1e30), ("dx", -1e30)]);
-        let c = wild.level_proposals(&gray, 20.0, 0.0);
+        let c = wild.level_proposals(&gray, 20.0, 0.0, None);
         assert!(c
             .iter()
             .all(|p| p.k == MAX_SHEAR && p.eyes_midpoint.x.is_finite()));
