@@ -553,11 +553,9 @@ fn degenerate_boxes_give_no_estimate() {
         .is_none());
 }
 
-/// A network detector window whose regressed eyes are off the face (here 0.7 eye distances to
-/// the side, beyond [`proposal_shows`]'s 0.5) still finds it: the landmark network walks to the
-/// face, and a second look from where it landed finds it there again.
-#[test]
-fn a_window_off_its_face_gets_a_second_look_from_where_the_network_landed() {
+/// The default corrector, the bundled example (sheared by 0.3) in grey, its face, and that
+/// face's eye midpoint and eye distance.
+fn bundled_example_face() -> (Unshear, GrayImage, FaceReport, Point, f64) {
     let u = built(Config::default());
     let path =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/example/face-k0.30.png");
@@ -565,6 +563,15 @@ fn a_window_off_its_face_gets_a_second_look_from_where_the_network_landed() {
     let face = u.estimate_gray(&gray).faces[0];
     let eyes = face.right_eye.midpoint(face.left_eye);
     let distance = face.right_eye.distance(face.left_eye);
+    (u, gray, face, eyes, distance)
+}
+
+/// A network detector window whose regressed eyes are off the face (here 0.7 eye distances to
+/// the side, beyond [`proposal_shows`]'s 0.5) still finds it: the landmark network walks to the
+/// face, and a second look from where it landed finds it there again.
+#[test]
+fn a_window_off_its_face_gets_a_second_look_from_where_the_network_landed() {
+    let (u, gray, face, eyes, distance) = bundled_example_face();
     let window = Detection {
         view_k: 0.3,
         ..proposal_detection(Point::new(eyes.x + 0.7 * distance, eyes.y), distance)
@@ -605,13 +612,7 @@ fn a_window_off_its_face_gets_a_second_look_from_where_the_network_landed() {
 /// others are looked at, in the windows' order.
 #[test]
 fn windows_looked_at_in_waves_are_judged_as_one_at_a_time() {
-    let u = built(Config::default());
-    let path =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/example/face-k0.30.png");
-    let gray = Unshear::gray(&image::open(path).expect("bundled example"));
-    let face = u.estimate_gray(&gray).faces[0];
-    let eyes = face.right_eye.midpoint(face.left_eye);
-    let distance = face.right_eye.distance(face.left_eye);
+    let (u, gray, _, eyes, distance) = bundled_example_face();
     let at = |dx: f64, dy: f64| {
         let d = Detection {
             view_k: 0.3,
