@@ -137,8 +137,13 @@ impl Unshear {
 
     /// A corrector with `models`; fails when `config` does not validate
     /// ([`Config::validate`]).
-    pub fn with_models(config: Config, models: Models) -> Result<Self> {
+    pub fn with_models(mut config: Config, models: Models) -> Result<Self> {
         config.validate()?;
+        // The Viola-Jones searches' boxes, often on texture, are judged by face-score limits
+        // set on single readings: the mirrored readings serve the network detector only.
+        if config.detector == crate::config::Detector::ViolaJones {
+            config.network_budget.mirrored = false;
+        }
         let detector = FaceDetector::new(models.cascade, config.cascade);
         let finite = |v: &[f64]| {
             v.iter()

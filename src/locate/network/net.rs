@@ -102,6 +102,8 @@ pub struct Workspace {
     pooled: Vec<f32>,
     hidden: Vec<f32>,
     head: Vec<f32>,
+    /// The crop mirrored left to right ([`LandmarkNet::run_mirrored`]).
+    mirrored: Vec<f32>,
 }
 
 /// What the network reads off one crop.
@@ -313,6 +315,7 @@ impl LandmarkNet {
             pooled,
             hidden,
             head,
+            ..
         } = ws;
         let c = &self.convs;
         let [s1, s2, s3, s4] = stages;
@@ -353,6 +356,40 @@ impl LandmarkNet {
             shear: f64::from(head[0]),
             face: 1.0 / (1.0 + (-f64::from(head[1])).exp()),
             face_logit: f64::from(head[1]),
+        }
+    }
+}
+
+impl LandmarkNet {
+    /// [`Self::run`] on `crop` averaged with its reading of the crop mirrored left to right,
+    /// taken back (the eyes swap, the shear changes sign): the trainer mirrors crops at random,
+    /// so both readings are equally good, and their errors partly cancel.
+    pub fn run_mirrored(&self, crop: &[f32], ws: &mut Workspace) -> NetOutput {
+        let direct = self.run(crop, ws);
+        let n = self.size;
+        let mut mirrored = std::mem::take(&mut ws.mirrored);
+        mirrored.clear();
+        for row in crop.chunks_exact(n) {
+            mirrored.extend(row.iter().rev());
+        }
+        let m = self.run(&mirrored, ws);
+        ws.mirrored = mirrored;
+        let back = |p: Point| Point::new((n - 1) as f64 - p.x, p.y);
+        let swapped = [
+            back(m.points[1]),
+            back(m.points[0]),
+            back(m.points[2]),
+            back(m.points[3]),
+        ];
+        let spread = [m.spread[1], m.spread[0], m.spread[2], m.spread[3]];
+        let mean = |a: f64, b: f64| 0.5 * (a + b);
+        let face_logit = mean(direct.face_logit, m.face_logit);
+        NetOutput {
+            points: std::array::from_fn(|i| direct.points[i].midpoint(swapped[i])),
+            spread: std::array::from_fn(|i| mean(direct.spread[i], spread[i])),
+            shear: mean(direct.shear, -m.shear),
+            face: 1.0 / (1.0 + (-face_logit).exp()),
+            face_logit,
         }
     }
 }
