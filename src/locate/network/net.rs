@@ -358,9 +358,7 @@ impl LandmarkNet {
             face_logit: f64::from(head[1]),
         }
     }
-}
 
-impl LandmarkNet {
     /// [`Self::run`] on `crop` averaged with its reading of the crop mirrored left to right,
     /// taken back (the eyes swap, the shear changes sign): the trainer mirrors crops at random,
     /// so both readings are equally good, and their errors partly cancel.
@@ -455,6 +453,30 @@ mod tests {
         let mut ws = Workspace::default();
         let out = net.run(&crop, &mut ws);
         assert_eq!(net.run(&crop, &mut ws), out);
+    }
+
+    /// The mirrored reading is symmetric: reading the crop mirrored gives the same face
+    /// mirrored (eyes swapped, shear negated, same face score), to rounding.
+    #[test]
+    fn a_mirrored_crop_reads_as_the_same_face_mirrored() {
+        let net = LandmarkNet::embedded().expect("embedded network");
+        let n = net.size();
+        let crop: Vec<f32> = (0..n * n).map(|i| ((i * 7) % 251) as f32).collect();
+        let flipped: Vec<f32> = crop
+            .chunks_exact(n)
+            .flat_map(|r| r.iter().rev().copied())
+            .collect();
+        let mut ws = Workspace::default();
+        let a = net.run_mirrored(&crop, &mut ws);
+        let b = net.run_mirrored(&flipped, &mut ws);
+        let back = |p: Point| Point::new((n - 1) as f64 - p.x, p.y);
+        for (i, j) in [(0, 1), (1, 0), (2, 2), (3, 3)] {
+            assert!(
+                a.points[i].distance(back(b.points[j])) < 1e-4,
+                "{a:?} {b:?}"
+            );
+        }
+        assert!((a.shear + b.shear).abs() < 1e-6 && (a.face_logit - b.face_logit).abs() < 1e-6);
     }
 
     #[test]
