@@ -399,7 +399,8 @@ impl Unshear {
     /// ([`window_is_face`]) and where the window expects it ([`proposal_shows`]). A face found
     /// elsewhere than the window expects (the window's regressed eyes are off, most often on
     /// strongly sheared faces) gets a second look from where the network landed, and counts
-    /// when that look lands there again. The faces found join `found`.
+    /// when that look lands there again ([`Self::take_second_looks`]). The faces found join
+    /// `found`.
     pub(crate) fn judge_windows(
         &self,
         gray: &GrayImage,
@@ -408,11 +409,17 @@ impl Unshear {
         budget: Budget,
         found: &mut Vec<(Rect, Option<FaceReport>)>,
     ) {
+        let earlier = found.len();
+        // The logit of the window that found each face from `earlier` on.
+        let mut found_by = Vec::new();
         let mut second_looks = Vec::new();
         let looks = self.look_at_windows(gray, &windows, start_k, budget, found);
         for ((d, logit), look) in windows.iter().zip(looks) {
             match look {
-                Some(r) if proposal_shows(d, &r) => found.push((d.face_box, Some(r))),
+                Some(r) if proposal_shows(d, &r) => {
+                    found.push((d.face_box, Some(r)));
+                    found_by.push(*logit);
+                }
                 Some(r) => {
                     let landed = Detection {
                         view_k: r.k_measured,
@@ -429,11 +436,77 @@ impl Unshear {
         }
         // After every window's own look, so that a second look landing on part of a face
         // cannot hide that face's own window.
-        let looks = self.look_at_windows(gray, &second_looks, start_k, budget, found);
-        for ((d, _), look) in second_looks.iter().zip(looks) {
-            if let Some(r) = look.filter(|r| proposal_shows(d, r)) {
-                found.push((d.face_box, Some(r)));
+        self.take_second_looks(
+            gray,
+            &second_looks,
+            start_k,
+            budget,
+            found,
+            earlier,
+            found_by,
+        );
+    }
+
+    /// The second looks of [`Self::judge_windows`] (`found[earlier..]` the faces its windows
+    /// found, by windows with logits `found_by`), strongest first. A second look is skipped
+    /// when it is on a face found before those windows, or by a window at least as strong as
+    /// its own. A face it finds that a weaker window's face hides (see [`proposal_is_new`])
+    /// takes that face's place if the landing face scores higher than each face hiding it,
+    /// and is dropped otherwise: a weak window's false face (seen on a dog's muzzle beside a
+    /// strongly sheared child) must not hide the face a stronger window saw from a little off.
+    #[allow(clippy::too_many_arguments)]
+    fn take_second_looks(
+        &self,
+        gray: &GrayImage,
+        second_looks: &[(Detection, f32)],
+        start_k: Option<f64>,
+        budget: Budget,
+        found: &mut Vec<(Rect, Option<FaceReport>)>,
+        earlier: usize,
+        mut found_by: Vec<f32>,
+    ) {
+        // The faces a look from a window with `logit` defers to.
+        let stronger = |found: &[(Rect, Option<FaceReport>)], found_by: &[f32], logit: f32| {
+            let later = found[earlier..].iter().zip(found_by);
+            let later = later.filter(|&(_, &by)| by >= logit).map(|(f, _)| *f);
+            found[..earlier]
+                .iter()
+                .copied()
+                .chain(later)
+                .collect::<Vec<_>>()
+        };
+        let looks: Vec<Option<FaceReport>> = second_looks
+            .par_iter()
+            .map(|(d, logit)| {
+                proposal_is_new(d, &stronger(found, &found_by, *logit))
+                    .then(|| self.look_at_window(gray, d, *logit, start_k, budget))
+                    .flatten()
+            })
+            .collect();
+        for ((d, logit), look) in second_looks.iter().zip(looks) {
+            let Some(r) = look.filter(|r| proposal_shows(d, r)) else {
+                continue;
+            };
+            // Faces found since the looks were taken (other second looks) may hide it now.
+            if !proposal_is_new(d, &stronger(found, &found_by, *logit)) {
+                continue;
             }
+            let hiding: Vec<usize> = (earlier..found.len())
+                .filter(|&i| !proposal_is_new(d, &found[i..=i]))
+                .collect();
+            let scores_higher = |i: &usize| {
+                let theirs = found[*i].1.and_then(|h| h.face_score);
+                matches!((r.face_score, theirs), (Some(s), Some(t)) if s > t)
+            };
+            if !hiding.iter().all(scores_higher) {
+                continue;
+            }
+            for &i in hiding.iter().rev() {
+                found.remove(i);
+                found_by.remove(i - earlier);
+            }
+            found.push((d.face_box, Some(r)));
+            found_by.push(*logit);
         }
     }
 

@@ -648,3 +648,51 @@ fn windows_looked_at_in_waves_are_judged_as_one_at_a_time() {
     let waves = u.look_at_windows(&gray, &windows, None, budget, &[]);
     assert_eq!(waves, sequential);
 }
+
+/// A second look finding a face that a weaker window's face hides takes that face's place
+/// when it scores higher, and is dropped when it does not; a stronger window's face is not
+/// looked past at all.
+#[test]
+fn a_second_look_displaces_only_weaker_windows_lower_scored_faces() {
+    let (u, gray, _, eyes, distance) = bundled_example_face();
+    let landing = Detection {
+        view_k: 0.3,
+        ..proposal_detection(eyes, distance)
+    };
+    // A "face" with eyes inside the landing's box, about as far apart: it hides the landing.
+    let hiding = |face_score: f64| {
+        let (r, l) = (
+            Point::new(eyes.x - 0.4 * distance, eyes.y + 0.3 * distance),
+            Point::new(eyes.x + 0.4 * distance, eyes.y + 0.3 * distance),
+        );
+        let report = FaceReport {
+            face_box: box_around_eyes(r.midpoint(l), 2.0 * distance, 2.0 * distance, 0.0),
+            right_eye: r,
+            left_eye: l,
+            face_score: Some(face_score),
+            ..face(Some(0.1), 0.9)
+        };
+        (report.face_box, Some(report))
+    };
+    assert!(!proposal_is_new(&landing, &[hiding(0.9)]));
+    let budget = u.config.network_budget;
+    let judged = |hidden_by: (Rect, Option<FaceReport>), its_logit: f32| {
+        let mut found = vec![hidden_by];
+        let second = [(landing, 5.0_f32)];
+        u.take_second_looks(&gray, &second, None, budget, &mut found, 0, vec![its_logit]);
+        found
+    };
+    let weak = hiding(0.9);
+    let found = judged(weak, 1.0);
+    assert_eq!(found.len(), 1, "{found:?}");
+    let r = found[0].1.expect("the face");
+    assert!(
+        r.right_eye.midpoint(r.left_eye).distance(eyes) < 0.1 * distance,
+        "{r:?}"
+    );
+    assert!(r.face_score > Some(0.9));
+    // Scored higher than the landing's face, or found by a stronger window: it stays.
+    let strong = hiding(1.0);
+    assert_eq!(judged(strong, 1.0), vec![strong]);
+    assert_eq!(judged(weak, 9.0), vec![weak]);
+}
