@@ -364,6 +364,16 @@ impl LandmarkNet {
     /// so both readings are equally good, and their errors partly cancel.
     pub fn run_mirrored(&self, crop: &[f32], ws: &mut Workspace) -> NetOutput {
         let direct = self.run(crop, ws);
+        self.averaged_with_mirrored(direct, crop, ws)
+    }
+
+    /// [`Self::run_mirrored`] from `direct`, the reading of `crop` as it is, already taken.
+    pub fn averaged_with_mirrored(
+        &self,
+        direct: NetOutput,
+        crop: &[f32],
+        ws: &mut Workspace,
+    ) -> NetOutput {
         let n = self.size;
         let mut mirrored = std::mem::take(&mut ws.mirrored);
         mirrored.clear();
