@@ -409,9 +409,9 @@ impl Unshear {
         budget: Budget,
         found: &mut Vec<(Rect, Option<FaceReport>)>,
     ) {
-        let earlier = found.len();
-        // The logit of the window that found each face from `earlier` on.
-        let mut found_by = Vec::new();
+        // The logit of the window that found each face of `found`; the faces found before
+        // count as found by the strongest.
+        let mut found_by = vec![f32::INFINITY; found.len()];
         let mut second_looks = Vec::new();
         let looks = self.look_at_windows(gray, &windows, start_k, budget, found);
         for ((d, logit), look) in windows.iter().zip(looks) {
@@ -436,25 +436,16 @@ impl Unshear {
         }
         // After every window's own look, so that a second look landing on part of a face
         // cannot hide that face's own window.
-        self.take_second_looks(
-            gray,
-            &second_looks,
-            start_k,
-            budget,
-            found,
-            earlier,
-            found_by,
-        );
+        self.take_second_looks(gray, &second_looks, start_k, budget, found, found_by);
     }
 
-    /// The second looks of [`Self::judge_windows`] (`found[earlier..]` the faces its windows
-    /// found, by windows with logits `found_by`), strongest first. A second look is skipped
-    /// when it is on a face found before those windows, or by a window at least as strong as
-    /// its own. A face it finds that a weaker window's face hides (see [`proposal_is_new`])
+    /// The second looks of [`Self::judge_windows`], strongest first, among the faces `found`
+    /// by windows with logits `found_by`. A second look is skipped when it is on a face found
+    /// by a window at least as strong as its own. A face it finds that a weaker window's face
+    /// hides (see [`proposal_is_new`])
     /// takes that face's place if the landing face scores higher than each face hiding it,
     /// and is dropped otherwise: a weak window's false face (seen on a dog's muzzle beside a
     /// strongly sheared child) must not hide the face a stronger window saw from a little off.
-    #[allow(clippy::too_many_arguments)]
     fn take_second_looks(
         &self,
         gray: &GrayImage,
@@ -462,18 +453,12 @@ impl Unshear {
         start_k: Option<f64>,
         budget: Budget,
         found: &mut Vec<(Rect, Option<FaceReport>)>,
-        earlier: usize,
         mut found_by: Vec<f32>,
     ) {
         // The faces a look from a window with `logit` defers to.
         let stronger = |found: &[(Rect, Option<FaceReport>)], found_by: &[f32], logit: f32| {
-            let later = found[earlier..].iter().zip(found_by);
-            let later = later.filter(|&(_, &by)| by >= logit).map(|(f, _)| *f);
-            found[..earlier]
-                .iter()
-                .copied()
-                .chain(later)
-                .collect::<Vec<_>>()
+            let by_stronger = found.iter().zip(found_by).filter(|&(_, &by)| by >= logit);
+            by_stronger.map(|(f, _)| *f).collect::<Vec<_>>()
         };
         let looks: Vec<Option<FaceReport>> = second_looks
             .par_iter()
@@ -491,7 +476,8 @@ impl Unshear {
             if !proposal_is_new(d, &stronger(found, &found_by, *logit)) {
                 continue;
             }
-            let hiding: Vec<usize> = (earlier..found.len())
+            // Only weaker windows' faces are left that can hide it.
+            let hiding: Vec<usize> = (0..found.len())
                 .filter(|&i| !proposal_is_new(d, &found[i..=i]))
                 .collect();
             let scores_higher = |i: &usize| {
@@ -503,7 +489,7 @@ impl Unshear {
             }
             for &i in hiding.iter().rev() {
                 found.remove(i);
-                found_by.remove(i - earlier);
+                found_by.remove(i);
             }
             found.push((d.face_box, Some(r)));
             found_by.push(*logit);

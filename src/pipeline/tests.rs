@@ -679,7 +679,7 @@ fn a_second_look_displaces_only_weaker_windows_lower_scored_faces() {
     let judged = |hidden_by: (Rect, Option<FaceReport>), its_logit: f32| {
         let mut found = vec![hidden_by];
         let second = [(landing, 5.0_f32)];
-        u.take_second_looks(&gray, &second, None, budget, &mut found, 0, vec![its_logit]);
+        u.take_second_looks(&gray, &second, None, budget, &mut found, vec![its_logit]);
         found
     };
     let weak = hiding(0.9);
