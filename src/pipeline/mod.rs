@@ -441,9 +441,8 @@ impl Unshear {
 
     /// The second looks of [`Self::judge_windows`], strongest first, among the faces `found`
     /// by windows with logits `found_by`. A second look is skipped when it is on a face found
-    /// by a window at least as strong as its own. A face it finds that a weaker window's face
-    /// hides (see [`proposal_is_new`])
-    /// takes that face's place if the landing face scores higher than each face hiding it,
+    /// by a window at least as strong as its own. A face it finds that weaker windows' faces
+    /// hide (see [`proposal_is_new`]) takes their place if it scores higher than each of them,
     /// and is dropped otherwise: a weak window's false face (seen on a dog's muzzle beside a
     /// strongly sheared child) must not hide the face a stronger window saw from a little off.
     fn take_second_looks(
