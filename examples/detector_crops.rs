@@ -2,7 +2,7 @@
 //! `scripts/train_detector.py` (see `unshear::detect::ProposalNet::embedded_detector`).
 //!
 //! ```sh
-//! cargo run --release --example detector_crops -- ../shared/data/caltech-webfaces target/detector-crops
+//! cargo run --release --example detector_crops -- --repeat 4 ../shared/data/caltech-webfaces target/detector-crops
 //! ```
 //!
 //! Writes `crops.u8` (32x32 bytes per window), `labels.u8` (1: face, 0: not), `targets.f32`
@@ -32,7 +32,12 @@
 //!   distances away, or 2-3.5 times too large or too small;
 //! * **background**: 40 windows per photo at random places and sizes (eye distances of 6 px
 //!   up to a third of the photo's shorter side), shear and roll drawn as for faces, none
-//!   within 0.8 eye distances of a face of half to twice its size.
+//!   within 0.8 eye distances of a face of half to twice its size;
+//! * **noise**: 8 windows per photo of uniform pixel noise, each pixel the average of 1x1 to
+//!   8x8 noise pixels (see `noise_window`).
+//!
+//! `--repeat R` cuts R times as many windows of every kind, each drawn afresh (the committed
+//! detector was trained on `--repeat 4`).
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -71,6 +76,10 @@ const SCALE_STEP: f64 = std::f64::consts::SQRT_2;
 const JITTER_MARGIN: f64 = 1.1;
 /// Most bilinear reads per window pixel and axis.
 const MAX_SUPERSAMPLING: usize = 4;
+/// Windows of pixel noise per photo.
+const NOISE: usize = 8;
+/// The largest shrinking of the noise a noise window shows.
+const MAX_NOISE_SHRINK: usize = 8;
 
 /// A roll: uniform in +-50 degrees or (half the time) +-15.
 fn roll(rng: &mut SplitMix64) -> f64 {
@@ -164,7 +173,7 @@ fn slant(face: &AnnotatedFace) -> f64 {
     dy.atan2(dx)
 }
 
-fn photo_windows(path: &Path, faces: &[AnnotatedFace], seed: u64) -> Vec<Window> {
+fn photo_windows(path: &Path, faces: &[AnnotatedFace], seed: u64, repeat: usize) -> Vec<Window> {
     let Ok(img) = unshear::imageio::read_image(path, unshear::imageio::DEFAULT_MAX_PIXELS) else {
         return Vec::new();
     };
@@ -182,12 +191,12 @@ fn photo_windows(path: &Path, faces: &[AnnotatedFace], seed: u64) -> Vec<Window>
         let mid = face.right_eye.midpoint(face.left_eye);
         let d = face.eye_distance();
         let natural = slant(face);
-        for i in 0..PER_FACE + NEAR_MISSES {
+        for i in 0..(PER_FACE + NEAR_MISSES) * repeat {
             let k = rng.symmetric(MAX_SHEAR);
             let roll = roll(&mut rng);
             // The photo is turned by what the face's own slant leaves of the roll drawn.
             let turn = roll - natural;
-            if i < PER_FACE {
+            if i % (PER_FACE + NEAR_MISSES) < PER_FACE {
                 let offset = (rng.symmetric(cell), rng.symmetric(cell));
                 let log_scale = rng.symmetric(step);
                 let pixels = render(&gray, mid, offset, d / log_scale.exp(), k, turn);
@@ -226,8 +235,8 @@ fn photo_windows(path: &Path, faces: &[AnnotatedFace], seed: u64) -> Vec<Window>
     let (w, h) = (f64::from(gray.width()), f64::from(gray.height()));
     let largest = (w.min(h) / 3.3).max(7.0);
     let mut made = 0;
-    for _ in 0..4 * BACKGROUND {
-        if made >= BACKGROUND {
+    for _ in 0..4 * BACKGROUND * repeat {
+        if made >= BACKGROUND * repeat {
             break;
         }
         let d = (6f64.ln() + rng.next_f64() * (largest / 6.0).ln()).exp();
@@ -244,13 +253,44 @@ fn photo_windows(path: &Path, faces: &[AnnotatedFace], seed: u64) -> Vec<Window>
         out.push((pixels, 0, [0.0; 5]));
         made += 1;
     }
+    for _ in 0..NOISE * repeat {
+        out.push((noise_window(&mut rng), 0, [0.0; 5]));
+    }
     out
 }
 
+/// A window of uniform pixel noise (a random mean and spread) as a pyramid level shows it:
+/// each window pixel the average of `f x f` noise pixels, `f` from 1 to [`MAX_NOISE_SHRINK`].
+/// The photos hold little of it, and without such windows the detector took a frame of
+/// noise (a dark, grainy surveillance frame at its extreme) for twice as many weak faces.
+fn noise_window(rng: &mut SplitMix64) -> Vec<u8> {
+    let f = 1 + (rng.next_f64() * MAX_NOISE_SHRINK as f64) as usize;
+    let f = f.min(MAX_NOISE_SHRINK);
+    let mean = 40.0 + 175.0 * rng.next_f64();
+    let spread = 10.0 + 118.0 * rng.next_f64();
+    (0..SIZE * SIZE)
+        .map(|_| {
+            let sum: f64 = (0..f * f)
+                .map(|_| (mean + rng.symmetric(spread)).clamp(0.0, 255.0).round())
+                .sum();
+            (sum / (f * f) as f64).round() as u8
+        })
+        .collect()
+}
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
+    let mut args: Vec<String> = std::env::args().skip(1).collect();
+    // `--repeat R`: R times as many windows of every kind.
+    let repeat = match args.iter().position(|a| a == "--repeat") {
+        Some(i) if i + 1 < args.len() => {
+            let r: usize = args[i + 1].parse()?;
+            args.drain(i..i + 2);
+            r.max(1)
+        }
+        _ => 1,
+    };
     let [data, out] = args.as_slice() else {
-        return Err("usage: detector_crops CALTECH_DIR OUT_DIR".into());
+        return Err("usage: detector_crops [--repeat R] CALTECH_DIR OUT_DIR".into());
     };
     let out = PathBuf::from(out);
     let photos = photos_with_small_faces(CaltechWebFaces::new(data).faces()?, MAX_EYE_DISTANCE);
@@ -271,7 +311,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .enumerate()
             .map(|(i, (path, faces))| {
                 let seed = 0x6465_7465_6374_6f72_u64 ^ (chunk_index * 128 + i) as u64;
-                photo_windows(path, faces, seed)
+                photo_windows(path, faces, seed, repeat)
             })
             .collect();
         for (i, photo) in windows.into_iter().enumerate() {
@@ -307,6 +347,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "photos": photos.len(),
         "stride": STRIDE,
         "scale_step": SCALE_STEP,
+        "repeat": repeat,
         "targets": ["dx", "dy", "log_scale", "k", "roll"],
     });
     std::fs::write(out.join("meta.json"), meta.to_string())?;

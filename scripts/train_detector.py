@@ -5,8 +5,8 @@ cuts, and writes the weights in the format that module reads (version 2).
 
     python3 -m venv target/torch
     target/torch/bin/pip install -r scripts/requirements-train.txt
-    cargo run --release --example detector_crops -- ../shared/data/caltech-webfaces target/detector-crops
-    target/torch/bin/python scripts/train_detector.py target/detector-crops -o target/detector.bin --epochs 24
+    cargo run --release --example detector_crops -- --repeat 4 ../shared/data/caltech-webfaces target/detector-crops
+    target/torch/bin/python scripts/train_detector.py target/detector-crops -o target/detector.bin --epochs 16
 
 `scripts/regenerate-models --only detector` runs these with the committed file's options.
 
@@ -184,7 +184,7 @@ def main() -> None:
     parser.add_argument("crops", help="directory written by the detector_crops example")
     parser.add_argument("-o", "--out", required=True)
     parser.add_argument("--widths", default="8,16,32,64")
-    parser.add_argument("--epochs", type=int, default=24)
+    parser.add_argument("--epochs", type=int, default=16)
     parser.add_argument("--regression-weight", type=float, default=2.0)
     parser.add_argument("--scale-step", type=float, default=math.sqrt(2.0))
     parser.add_argument("--min-logit", type=float, default=0.0)

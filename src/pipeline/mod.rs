@@ -500,7 +500,7 @@ impl Unshear {
     /// after the other and adding each face found to `found` before the next (as `commit`
     /// does). Looks are taken in waves on the thread pool: a wave holds the windows up to the
     /// next one not yet looked at whose box overlaps an earlier window's (that window's face,
-    /// once found, may hide it), so a frame's separate windows (nine on a frame of noise) do
+    /// once found, may hide it), so a frame's separate windows (a busy scene can give ten) do
     /// not wait for each other on one core, and no look is spent on a window its stronger
     /// neighbour's face will hide. Each look depends only on its window, so the results are
     /// those of one window at a time.
