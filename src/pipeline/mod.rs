@@ -51,7 +51,7 @@ use crate::locate::network::{Budget, LandmarkNet};
 use combine::most_confident_of_overlapping;
 use proposals::{
     network_windows, proposal_detection, proposal_detections, proposal_is_new, proposal_shows,
-    window_is_face,
+    settle_unsure_faces, window_is_face, window_is_new,
 };
 use search::{
     overlapping_groups, tries_of_group, FallbackDetector, ThoroughDetectors,
@@ -393,7 +393,9 @@ impl Unshear {
     }
 
     /// Judges the network detector's `windows` in `gray`, strongest first, each against the
-    /// faces in `found` so far (a window on a face already found is skipped): the landmark
+    /// faces in `found` so far (a window on a face already found is skipped, [`window_is_new`];
+    /// one on a face found unsure is looked at, and the two settled by
+    /// [`settle_unsure_faces`]): the landmark
     /// network, started from the window's shear (or `start_k`, a shear known better, such as a
     /// video's filtered one) and roll with `budget`, must find a face there
     /// ([`window_is_face`]) and where the window expects it ([`proposal_shows`]). A face found
@@ -409,6 +411,7 @@ impl Unshear {
         budget: Budget,
         found: &mut Vec<(Rect, Option<FaceReport>)>,
     ) {
+        let first_new = found.len();
         // The logit of the window that found each face of `found`; the faces found before
         // count as found by the strongest.
         let mut found_by = vec![f32::INFINITY; found.len()];
@@ -437,12 +440,13 @@ impl Unshear {
         // After every window's own look, so that a second look landing on part of a face
         // cannot hide that face's own window.
         self.take_second_looks(gray, &second_looks, start_k, budget, found, found_by);
+        settle_unsure_faces(found, first_new);
     }
 
     /// The second looks of [`Self::judge_windows`], strongest first, among the faces `found`
     /// by windows with logits `found_by`. A second look is skipped when it is on a face found
     /// by a window at least as strong as its own. A face it finds that weaker windows' faces
-    /// hide (see [`proposal_is_new`]) takes their place if it scores higher than each of them,
+    /// hide (see [`window_is_new`]) takes their place if it scores higher than each of them,
     /// and is dropped otherwise: a weak window's false face (seen on a dog's muzzle beside a
     /// strongly sheared child) must not hide the face a stronger window saw from a little off.
     fn take_second_looks(
@@ -462,7 +466,7 @@ impl Unshear {
         let looks: Vec<Option<FaceReport>> = second_looks
             .par_iter()
             .map(|(d, logit)| {
-                proposal_is_new(d, &stronger(found, &found_by, *logit))
+                window_is_new(d, &stronger(found, &found_by, *logit))
                     .then(|| self.look_at_window(gray, d, *logit, start_k, budget))
                     .flatten()
             })
@@ -472,12 +476,12 @@ impl Unshear {
                 continue;
             };
             // Faces found since the looks were taken (other second looks) may hide it now.
-            if !proposal_is_new(d, &stronger(found, &found_by, *logit)) {
+            if !window_is_new(d, &stronger(found, &found_by, *logit)) {
                 continue;
             }
             // Only weaker windows' faces are left that can hide it.
             let hiding: Vec<usize> = (0..found.len())
-                .filter(|&i| !proposal_is_new(d, &found[i..=i]))
+                .filter(|&i| !window_is_new(d, &found[i..=i]))
                 .collect();
             let scores_higher = |i: &usize| {
                 let theirs = found[*i].1.and_then(|h| h.face_score);
@@ -496,7 +500,7 @@ impl Unshear {
     }
 
     /// [`Self::look_at_window`] for each of `windows` in order, `None` for a window on a face
-    /// in `found` ([`proposal_is_new`]) when its turn comes, exactly as looking at one window
+    /// in `found` ([`window_is_new`]) when its turn comes, exactly as looking at one window
     /// after the other and adding each face found to `found` before the next (as `commit`
     /// does). Looks are taken in waves on the thread pool: a wave holds the windows up to the
     /// next one not yet looked at whose box overlaps an earlier window's (that window's face,
@@ -525,10 +529,10 @@ impl Unshear {
                     let (d, _) = &windows[j];
                     let overlaps = |e: &Detection| e.face_box.intersection(&d.face_box).is_some();
                     taken[j].is_none()
-                        && proposal_is_new(d, &found_now)
+                        && window_is_new(d, &found_now)
                         && (next..j).all(|i| {
                             let (e, _) = &windows[i];
-                            !overlaps(e) || !proposal_is_new(e, &found_now)
+                            !overlaps(e) || !window_is_new(e, &found_now)
                         })
                 })
                 .collect();
@@ -545,7 +549,7 @@ impl Unshear {
             // Decided in order as far as the looks taken reach (a window no longer new needs
             // none).
             while let Some((d, _)) = windows.get(looks.len()) {
-                let look = if !proposal_is_new(d, &found_now) {
+                let look = if !window_is_new(d, &found_now) {
                     None
                 } else if let Some(look) = taken[looks.len()].take() {
                     look

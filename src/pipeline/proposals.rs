@@ -8,7 +8,7 @@ use super::combine::holds_eyes;
 use super::face::MIN_FACE_SCORE;
 use super::report::FaceReport;
 use super::search::{Detection, NEAR_MISS_MIN_FACE_SCORE};
-use crate::config::MIN_NETWORK_FACE;
+use crate::config::{DEFAULT_MIN_CONFIDENCE, MIN_NETWORK_FACE};
 use crate::detect::boxes::{box_around_eyes, eyes_in_box, EYE_DISTANCE_PER_BOX_WIDTH};
 use crate::detect::{ProposalNet, ProposalParams};
 use crate::geometry::{Point, Rect};
@@ -31,26 +31,86 @@ pub(crate) fn proposal_eyes(proposal: &Detection) -> (Point, f64) {
     )
 }
 
-/// Whether a proposal may show a face not among `found`: its box holds the eyes of none of
-/// about its size ([`PROPOSAL_MAX_SCALE`]; that face again), and its eyes are inside the box of
-/// none of about its size or larger (part of that face at a smaller scale: a large face's nose
-/// and nostrils can look like a small face to the classifier and the network alike). A much
-/// larger window around a smaller face found is still searched: that "face" can be the nose of
-/// the larger one.
-pub(crate) fn proposal_is_new(proposal: &Detection, found: &[(Rect, Option<FaceReport>)]) -> bool {
+/// The confidence from which a face found hides the network detector's windows of about its
+/// size on it ([`window_is_new`]): the default's threshold. A face read with less can be a
+/// wrong reading beside a real face (seen: "eyes" on a child's cheek and eye, or half a face
+/// below the real eyes, confidence 0) that hid the window reading that face right.
+pub(crate) const HIDING_MIN_CONFIDENCE: f64 = DEFAULT_MIN_CONFIDENCE;
+
+/// Whether `face` is sure enough to hide the windows of about its size on it
+/// ([`HIDING_MIN_CONFIDENCE`]).
+pub(crate) fn hides_windows(face: &FaceReport) -> bool {
+    face.confidence >= HIDING_MIN_CONFIDENCE
+}
+
+/// Whether the face `r` hides `proposal`: the window's box holds its eyes and it is about the
+/// window's size ([`PROPOSAL_MAX_SCALE`]; that face again), or the window's eyes are inside its
+/// box and it is about the window's size or larger (part of that face at a smaller scale: a
+/// large face's nose and nostrils can look like a small face to the classifier and the network
+/// alike). A much larger window around a smaller face is not hidden: that "face" can be the
+/// nose of the larger one. Also says whether `r` is much larger than the window.
+fn hides(proposal: &Detection, r: &FaceReport) -> (bool, bool) {
     let (eyes, distance) = proposal_eyes(proposal);
-    let b = proposal.face_box;
+    let ratio = r.right_eye.distance(r.left_eye) / distance;
+    let at_least_as_large = ratio * PROPOSAL_MAX_SCALE >= 1.0;
+    let about_as_large = at_least_as_large && ratio <= PROPOSAL_MAX_SCALE;
+    let same_face = holds_eyes(&proposal.face_box, r) && about_as_large;
+    let part_of_it = at_least_as_large && r.face_box.contains(eyes);
+    (same_face || part_of_it, ratio > PROPOSAL_MAX_SCALE)
+}
+
+/// Whether a proposal may show a face not among `found`: no face found hides it (see
+/// [`hides`]).
+pub(crate) fn proposal_is_new(proposal: &Detection, found: &[(Rect, Option<FaceReport>)]) -> bool {
+    found
+        .iter()
+        .all(|(_, r)| r.is_none_or(|r| !hides(proposal, &r).0))
+}
+
+/// [`proposal_is_new`] for the network detector's windows, where only a face sure enough
+/// ([`hides_windows`]) hides a window of about its size; any face hides the windows on its parts
+/// much smaller than itself. A window an unsure face does not hide is looked at, and its face
+/// settled against that one by [`settle_unsure_faces`].
+pub(crate) fn window_is_new(window: &Detection, found: &[(Rect, Option<FaceReport>)]) -> bool {
     found.iter().all(|(_, r)| {
         r.is_none_or(|r| {
-            let holds_it = holds_eyes(&b, &r);
-            let ratio = r.right_eye.distance(r.left_eye) / distance;
-            let at_least_as_large = ratio * PROPOSAL_MAX_SCALE >= 1.0;
-            let about_as_large = at_least_as_large && ratio <= PROPOSAL_MAX_SCALE;
-            let same_face = holds_it && about_as_large;
-            let part_of_it = at_least_as_large && r.face_box.contains(eyes);
-            !(same_face || part_of_it)
+            let (hidden, much_larger) = hides(window, &r);
+            !(hidden && (much_larger || hides_windows(&r)))
         })
     })
+}
+
+/// Settles the faces of `found` from `first_new` on, each found from the window its box is
+/// (see [`window_is_new`]), against the faces before it that would have hidden that window
+/// ([`proposal_is_new`]): a face sure enough ([`hides_windows`]) takes the place of the unsure
+/// ones among them; an unsure face is dropped (the first reading of a spot stands against an
+/// equally unsure later one).
+pub(crate) fn settle_unsure_faces(found: &mut Vec<(Rect, Option<FaceReport>)>, first_new: usize) {
+    let mut i = first_new;
+    while i < found.len() {
+        let (b, Some(r)) = found[i] else {
+            i += 1;
+            continue;
+        };
+        let window = proposal_detection_in(b);
+        let hiding: Vec<usize> = (0..i)
+            .filter(|&j| found[j].1.is_some_and(|h| hides(&window, &h).0))
+            .collect();
+        if hiding.is_empty() {
+            i += 1;
+        } else if hides_windows(&r) {
+            let unsure: Vec<usize> = hiding
+                .into_iter()
+                .filter(|&j| found[j].1.is_some_and(|h| !hides_windows(&h)))
+                .collect();
+            for &j in unsure.iter().rev() {
+                found.remove(j);
+            }
+            i = i + 1 - unsure.len();
+        } else {
+            found.remove(i);
+        }
+    }
 }
 
 /// Whether the face the network located from a proposal (see [`proposal_detections`]) is the
@@ -150,8 +210,13 @@ pub(crate) fn scored_proposal_detections(
 /// midpoint at `eyes` (see [`proposal_detections`]); [`proposal_eyes`] reads them back.
 pub(crate) fn proposal_detection(eyes: Point, eye_distance: f64) -> Detection {
     let width = eye_distance / EYE_DISTANCE_PER_BOX_WIDTH;
+    proposal_detection_in(box_around_eyes(eyes, width, width, 0.0))
+}
+
+/// The proposal whose box is `face_box`, upright and unsheared.
+fn proposal_detection_in(face_box: Rect) -> Detection {
     Detection {
-        face_box: box_around_eyes(eyes, width, width, 0.0),
+        face_box,
         view_k: 0.0,
         view_roll: 0.0,
         neighbors: 0,

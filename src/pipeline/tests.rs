@@ -1,5 +1,8 @@
 use super::combine::{combined_shear, consensus, most_confident_of_overlapping};
-use super::proposals::{proposal_detection, proposal_eyes, proposal_is_new, proposal_shows};
+use super::proposals::{
+    proposal_detection, proposal_eyes, proposal_is_new, proposal_shows, settle_unsure_faces,
+    window_is_new, HIDING_MIN_CONFIDENCE,
+};
 use super::search::{
     overlapping_groups, strongest_of_overlapping, tries_of_group, View, THOROUGH_BOX_TRIES,
     THOROUGH_HALF_STEP_LADDER, TURNED_DESHEARED_MIN_ROLL, TURNED_DESHEARED_SHEARS,
@@ -428,6 +431,74 @@ fn a_proposal_on_a_face_found_or_inside_it_is_not_searched() {
     ));
 }
 
+/// A face found from a window with eyes 60 px apart at `(x, 200)`, as the network detector
+/// keeps it (its window's box, the face), read with `confidence`.
+fn found_at(x: f64, confidence: f64) -> (Rect, Option<FaceReport>) {
+    let window = proposal_detection(Point::new(x, 200.0), 60.0).face_box;
+    let report = FaceReport {
+        face_box: window,
+        right_eye: Point::new(x - 30.0, 200.0),
+        left_eye: Point::new(x + 30.0, 200.0),
+        ..face(Some(0.1), confidence)
+    };
+    (window, Some(report))
+}
+
+/// A face read with less than the default's confidence hides no window of about its size (it
+/// may be a wrong reading beside the face that window reads right), but still hides the much
+/// smaller windows on its parts; a face read with it hides both.
+#[test]
+fn an_unsure_face_hides_only_the_windows_on_its_parts() {
+    let sure = [found_at(300.0, HIDING_MIN_CONFIDENCE)];
+    let unsure = [found_at(300.0, 0.5 * HIDING_MIN_CONFIDENCE)];
+    // Half an eye distance below: the window's box holds the face's eyes, and its eyes are in
+    // the face's box.
+    let below = proposal_detection(Point::new(300.0, 230.0), 60.0);
+    let nose = proposal_detection(Point::new(300.0, 240.0), 20.0);
+    for f in [&sure, &unsure] {
+        assert!(!proposal_is_new(&below, f));
+        assert!(!proposal_is_new(&nose, f));
+        assert!(!window_is_new(&nose, f));
+    }
+    assert!(!window_is_new(&below, &sure));
+    assert!(window_is_new(&below, &unsure));
+}
+
+/// Of two faces found where the first would have hidden the second's window, a sure second face
+/// takes an unsure first one's place; an unsure second face is dropped; faces apart, and faces
+/// found before `first_new`, are left alone.
+#[test]
+fn a_sure_face_takes_an_unsure_ones_place_and_an_unsure_one_is_dropped() {
+    let (low, high) = (0.5 * HIDING_MIN_CONFIDENCE, HIDING_MIN_CONFIDENCE);
+    let settled = |mut found: Vec<(Rect, Option<FaceReport>)>, first_new: usize| {
+        settle_unsure_faces(&mut found, first_new);
+        found
+            .iter()
+            .map(|(_, r)| r.expect("a face").right_eye.x + 30.0)
+            .collect::<Vec<_>>()
+    };
+    // A wrong reading first (unsure), then the face beside it read right (sure), then a face
+    // of its own far away.
+    let found = vec![
+        found_at(300.0, low),
+        found_at(320.0, high),
+        found_at(600.0, low),
+    ];
+    assert_eq!(settled(found.clone(), 0), vec![320.0, 600.0]);
+    // The other way round: the second, unsure reading is dropped.
+    let found = vec![found_at(300.0, high), found_at(320.0, low)];
+    assert_eq!(settled(found, 0), vec![300.0]);
+    let found = vec![
+        found_at(300.0, low),
+        found_at(320.0, low),
+        found_at(330.0, high),
+    ];
+    assert_eq!(settled(found, 0), vec![330.0]);
+    // Faces before `first_new` are not settled against each other.
+    let found = vec![found_at(300.0, low), found_at(320.0, low)];
+    assert_eq!(settled(found, 2), vec![300.0, 320.0]);
+}
+
 #[test]
 fn one_face_found_in_two_boxes_is_reported_once() {
     let located = |x: f64, confidence: f64| FaceReport {
@@ -632,7 +703,7 @@ fn windows_looked_at_in_waves_are_judged_as_one_at_a_time() {
     let mut sequential = Vec::new();
     let mut found: Vec<(Rect, Option<FaceReport>)> = Vec::new();
     for (d, logit) in &windows {
-        let look = proposal_is_new(d, &found)
+        let look = window_is_new(d, &found)
             .then(|| u.look_at_window(&gray, d, *logit, None, budget))
             .flatten();
         if let Some(r) = look.filter(|r| proposal_shows(d, r)) {
@@ -674,7 +745,7 @@ fn a_second_look_displaces_only_weaker_windows_lower_scored_faces() {
         };
         (report.face_box, Some(report))
     };
-    assert!(!proposal_is_new(&landing, &[hiding(0.9)]));
+    assert!(!window_is_new(&landing, &[hiding(0.9)]));
     let budget = u.config.network_budget;
     let judged = |hidden_by: (Rect, Option<FaceReport>), its_logit: f32| {
         let mut found = vec![hidden_by];
