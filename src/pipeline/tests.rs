@@ -465,8 +465,8 @@ fn an_unsure_face_hides_only_the_windows_on_its_parts() {
 }
 
 /// Of two faces found where the first would have hidden the second's window, a sure second face
-/// takes an unsure first one's place; an unsure second face is dropped; faces apart, and faces
-/// found before `first_new`, are left alone.
+/// takes an unsure first one's place unless it located the same eyes; an unsure second face is
+/// dropped; faces apart, and faces found before `first_new`, are left alone.
 #[test]
 fn a_sure_face_takes_an_unsure_ones_place_and_an_unsure_one_is_dropped() {
     let (low, high) = (0.5 * HIDING_MIN_CONFIDENCE, HIDING_MIN_CONFIDENCE);
@@ -494,6 +494,10 @@ fn a_sure_face_takes_an_unsure_ones_place_and_an_unsure_one_is_dropped() {
         found_at(330.0, high),
     ];
     assert_eq!(settled(found, 0), vec![330.0]);
+    // A sure reading of the same eyes as an unsure one is that face read again: the doubt
+    // stands.
+    let found = vec![found_at(300.0, low), found_at(303.0, high)];
+    assert_eq!(settled(found, 0), vec![300.0]);
     // Faces before `first_new` are not settled against each other.
     let found = vec![found_at(300.0, low), found_at(320.0, low)];
     assert_eq!(settled(found, 2), vec![300.0, 320.0]);
