@@ -14,15 +14,19 @@ pub(crate) fn holds_eyes(b: &Rect, report: &FaceReport) -> bool {
 /// apart even in a crowd.
 pub(crate) const SAME_FACE_EYE_DISTANCES: f64 = 0.5;
 
+/// The smaller of two estimates' eye distances: the unit their eyes are compared in.
+pub(crate) fn smaller_eye_distance(a: &FaceReport, b: &FaceReport) -> f64 {
+    a.right_eye
+        .distance(a.left_eye)
+        .min(b.right_eye.distance(b.left_eye))
+}
+
 /// Whether two estimates located the same face: their eye midpoints within
 /// [`SAME_FACE_EYE_DISTANCES`]. Their boxes can still differ much: a turned view's box around
 /// a whole head, say, from which the features were followed to the face that another box holds
 /// tightly.
 fn same_face(a: &FaceReport, b: &FaceReport) -> bool {
-    let eye_distance = a
-        .right_eye
-        .distance(a.left_eye)
-        .min(b.right_eye.distance(b.left_eye));
+    let eye_distance = smaller_eye_distance(a, b);
     let apart = a
         .right_eye
         .midpoint(a.left_eye)

@@ -4,7 +4,7 @@
 
 use image::GrayImage;
 
-use super::combine::holds_eyes;
+use super::combine::{holds_eyes, smaller_eye_distance};
 use super::face::MIN_FACE_SCORE;
 use super::report::FaceReport;
 use super::search::{Detection, NEAR_MISS_MIN_FACE_SCORE};
@@ -87,11 +87,7 @@ pub(crate) const SAME_EYES_EYE_DISTANCES: f64 = 0.25;
 
 /// Whether two readings located the same eyes ([`SAME_EYES_EYE_DISTANCES`]).
 fn same_eyes(a: &FaceReport, b: &FaceReport) -> bool {
-    let d = a
-        .right_eye
-        .distance(a.left_eye)
-        .min(b.right_eye.distance(b.left_eye));
-    let near = SAME_EYES_EYE_DISTANCES * d;
+    let near = SAME_EYES_EYE_DISTANCES * smaller_eye_distance(a, b);
     a.right_eye.distance(b.right_eye) < near && a.left_eye.distance(b.left_eye) < near
 }
 
