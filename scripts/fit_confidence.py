@@ -6,20 +6,26 @@ the filters' model of one filter type (`--model umace|asef|mosse`, the features 
 
 The model is a logistic regression of "the measured k is within 0.10 of the true k" on the
 features listed in FEATURES or NETWORK_FEATURES (the same, in the same order, as the Rust
-functions compute). It prints the weights and intercept, the two-fold cross-validated AUC
-(folds by image, so that a face's shears never sit on both sides) and what several thresholds
-keep.
+functions compute), over the estimates that no rule refused (a rule's refusal does not depend on
+the confidence). It prints the weights and intercept, the two-fold cross-validated AUC (folds by
+image, so that a face's shears never sit on both sides) and what several thresholds keep.
+
+The models are fitted on faces that no accuracy table measures and the landmark network was
+never trained on (`eval shear --faces unseen`: in the development photos whose faces all have
+eyes under 40 px apart, those held out of the network's training or smaller than it trains on),
+and may be checked on the faces the tables measure.
 
 Usage (`scripts/regenerate-models --only confidence` runs these for every model):
-    cargo run --release -- eval shear --locator filters --filter-type mosse --k=0,0.4,-0.4 --out target/eval-mosse
-    python3 scripts/fit_confidence.py target/eval-mosse --model mosse --fit-first 300 --write-rust src/fitted.rs
-    cargo run --release -- eval shear --k=0,0.4,-0.4 --min-confidence 0 --out target/eval-network
-    python3 scripts/fit_confidence.py target/eval-network --model network --fit-first 300 --write-rust src/fitted.rs
+    cargo run --release -- eval shear --faces unseen --min-eye-distance 12 --k=0,0.2,-0.2,0.4,-0.4 --locator filters --filter-type mosse --out target/fit-mosse
+    python3 scripts/fit_confidence.py target/fit-mosse --model mosse --write-rust src/fitted.rs
+    cargo run --release -- eval shear --faces unseen --min-eye-distance 12 --k=0,0.2,-0.2,0.4,-0.4 --min-confidence 0 --out target/fit-network
+    python3 scripts/fit_confidence.py target/fit-network --model network --write-rust src/fitted.rs
 
-`--fit-first N` fits on the first N faces in the run's own order (images sorted by path, which
-is not the ground-truth file's order) and scores the others; `--check OTHER_RUN` instead fits on
-the whole run and scores the faces of OTHER_RUN that are not in it. `--fitted-on TEXT` names the
-command that made the run in the generated comment. Needs only numpy.
+`--check OTHER_RUN` also scores the faces of OTHER_RUN that are not in the fitted run (for
+example the measured faces, `eval shear --min-confidence 0 --out OTHER_RUN`); `--fit-first N`
+instead fits on the first N faces in the run's own order (images sorted by path, which is not
+the ground-truth file's order) and scores the others. `--fitted-on TEXT` names the command that
+made the run in the generated comment. Needs only numpy.
 """
 
 from __future__ import annotations
@@ -122,13 +128,34 @@ def face_key(s: Sample) -> tuple[str, int]:
     return (s["image"], s["face"])
 
 
+def refused_by_rule(s: Sample) -> bool:
+    """Whether a rule (not the confidence) refused the estimate."""
+    return s.get("refused") not in (None, "low_confidence")
+
+
+def load_false_faces(run: str) -> list[Sample]:
+    """The faces reported on the run's photos with their annotated faces painted over
+    (`eval shear --face-free`; none without it): false faces, or real faces the annotations
+    leave out, whose estimates count as bad."""
+    try:
+        with open(run + "/face_free.json", encoding="utf-8") as f:
+            photos: list[dict[str, Any]] = json.load(f)
+    except FileNotFoundError:
+        return []
+    return [{**face, "false_face": True} for p in photos for face in p["found"]]
+
+
 def arrays(
     samples: list[Sample], feature_fn: Callable[[Sample], list[float]]
 ) -> tuple[np.ndarray, np.ndarray, list[str]]:
-    """The features, the labels (within GOOD or not) and the images of the measured samples."""
-    rows = [s for s in samples if s["measured"] is not None]
+    """The features, the labels (within GOOD or not; a false face never is) and the images of
+    the measured samples."""
+    rows = [s for s in samples if s["measured"] is not None and not refused_by_rule(s)]
     x = np.array([feature_fn(s) for s in rows])
-    y = np.array([abs(s["measured"] - s["true_k"]) <= GOOD for s in rows], dtype=float)
+    y = np.array(
+        [not s.get("false_face") and abs(s["measured"] - s["true_k"]) <= GOOD for s in rows],
+        dtype=float,
+    )
     images = [s["image"] for s in rows]
     return x, y, images
 
@@ -204,11 +231,14 @@ def main() -> None:
     if args.check is not None:
         fitted = {face_key(s) for s in fit_samples}
         check = [s for s in load_samples(args.check) if face_key(s) not in fitted]
+        check += load_false_faces(args.check)
     elif args.fit_first is not None:
         order = list(dict.fromkeys(face_key(s) for s in fit_samples))
         first = set(order[: args.fit_first])
         check = [s for s in fit_samples if face_key(s) not in first]
         fit_samples = [s for s in fit_samples if face_key(s) in first]
+    false_faces = load_false_faces(args.run)
+    fit_samples += false_faces
     x, y, images = arrays(fit_samples, feature_fn)
     # Two folds by image.
     image_names = sorted(set(images))
@@ -222,8 +252,11 @@ def main() -> None:
         print(f"  {w:+.3f}  {name}")
     print(f"  {intercept:+.3f}  intercept")
     report("fitted", x, y, weights, intercept)
-    fit_faces = len({face_key(s) for s in fit_samples})
+    fit_faces = len({face_key(s) for s in fit_samples if not s.get("false_face")})
     summary = f"fitted on {len(y)} estimates of {fit_faces} faces"
+    if false_faces:
+        used = sum(1 for f in false_faces if f["measured"] is not None and not refused_by_rule(f))
+        summary += f" and of {used} faces found with the annotated faces painted over"
     if check is not None:
         faces = len({face_key(s) for s in check})
         xc, yc, _ = arrays(check, feature_fn)

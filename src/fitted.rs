@@ -30,76 +30,84 @@ pub(crate) const EYE_PAIR_WEIGHTS: [f64; 10] = [
 /// Weights of the features of `pipeline::confidence::confidence`, in their order, for UMACE
 /// filters: a logistic model of the chance that an estimate is within 0.10 of the true shear.
 ///
-/// Fitted by `python3 scripts/fit_confidence.py target/eval-umace --model umace --fit-first 300` on
-/// `unshear eval shear --k=0,0.4,-0.4 --filter-type umace --out target/eval-umace` at commit
-/// 250fb5d, when the filters were the default locator: fitted on 845 estimates of 300 faces,
-/// checked on 1777 estimates of 628 other faces (AUC 0.836).
+/// Fitted by `python3 scripts/fit_confidence.py target/fit-umace --model umace` on `cargo run
+/// --release -- eval shear --faces unseen --min-eye-distance 12 --k=0,0.2,-0.2,0.4,-0.4 --face-free
+/// --locator filters --filter-type umace --out target/fit-umace`, run before these values were
+/// written in (the network's model steers which windows are read again, so a rerun gives close
+/// values): fitted on 3363 estimates of 817 faces and of 170 faces found with the annotated faces
+/// painted over (AUC 0.785 on them).
 pub(crate) const CONFIDENCE_UMACE_WEIGHTS: [f64; 7] = [
-    0.452,  // ln weaker eye PSR
-    -0.137, // ln weaker nostril PSR
-    3.087,  // ln mouth PSR
-    0.938,  // ln nose-tip PSR
-    -6.348, // |k_nose_tip - k_mouth|
-    -0.636, // |roll| / 10 degrees
-    -0.134, // |eye distance / box width - 0.381| * 10
+    0.611,  // ln weaker eye PSR
+    0.143,  // ln weaker nostril PSR
+    2.165,  // ln mouth PSR
+    0.608,  // ln nose-tip PSR
+    -3.250, // |k_nose_tip - k_mouth|
+    -0.347, // |roll| / 10 degrees
+    -0.629, // |eye distance / box width - 0.381| * 10
 ];
 /// The intercept of the model of `CONFIDENCE_UMACE_WEIGHTS`.
-pub(crate) const CONFIDENCE_UMACE_INTERCEPT: f64 = -4.204;
+pub(crate) const CONFIDENCE_UMACE_INTERCEPT: f64 = -2.847;
 
 /// Weights of the features of `pipeline::confidence::confidence`, in their order, for ASEF filters:
 /// a logistic model of the chance that an estimate is within 0.10 of the true shear.
 ///
-/// Fitted by `python3 scripts/fit_confidence.py target/eval-asef --model asef --fit-first 300` on
-/// `unshear eval shear --k=0,0.4,-0.4 --filter-type asef --out target/eval-asef` at commit 250fb5d,
-/// when the filters were the default locator: fitted on 848 estimates of 300 faces, checked on 1776
-/// estimates of 628 other faces (AUC 0.825).
+/// Fitted by `python3 scripts/fit_confidence.py target/fit-asef --model asef` on `cargo run
+/// --release -- eval shear --faces unseen --min-eye-distance 12 --k=0,0.2,-0.2,0.4,-0.4 --face-free
+/// --locator filters --filter-type asef --out target/fit-asef`, run before these values were
+/// written in (the network's model steers which windows are read again, so a rerun gives close
+/// values): fitted on 3477 estimates of 817 faces and of 153 faces found with the annotated faces
+/// painted over (AUC 0.825 on them).
 pub(crate) const CONFIDENCE_ASEF_WEIGHTS: [f64; 7] = [
-    1.021,  // ln weaker eye PSR
-    0.070,  // ln weaker nostril PSR
-    2.528,  // ln mouth PSR
-    0.937,  // ln nose-tip PSR
-    -8.181, // |k_nose_tip - k_mouth|
-    -0.310, // |roll| / 10 degrees
-    -0.046, // |eye distance / box width - 0.381| * 10
+    1.061,  // ln weaker eye PSR
+    -0.012, // ln weaker nostril PSR
+    2.496,  // ln mouth PSR
+    1.018,  // ln nose-tip PSR
+    -5.035, // |k_nose_tip - k_mouth|
+    -0.778, // |roll| / 10 degrees
+    -0.370, // |eye distance / box width - 0.381| * 10
 ];
 /// The intercept of the model of `CONFIDENCE_ASEF_WEIGHTS`.
-pub(crate) const CONFIDENCE_ASEF_INTERCEPT: f64 = -3.803;
+pub(crate) const CONFIDENCE_ASEF_INTERCEPT: f64 = -3.052;
 
 /// Weights of the features of `pipeline::confidence::confidence`, in their order, for MOSSE
 /// filters: a logistic model of the chance that an estimate is within 0.10 of the true shear.
 ///
-/// Fitted by `python3 scripts/fit_confidence.py target/eval-mosse --model mosse --fit-first 300` on
-/// `unshear eval shear --k=0,0.4,-0.4 --filter-type mosse --out target/eval-mosse` at commit
-/// 250fb5d, when the filters were the default locator: fitted on 847 estimates of 300 faces,
-/// checked on 1782 estimates of 628 other faces (AUC 0.818).
+/// Fitted by `python3 scripts/fit_confidence.py target/fit-mosse --model mosse` on `cargo run
+/// --release -- eval shear --faces unseen --min-eye-distance 12 --k=0,0.2,-0.2,0.4,-0.4 --face-free
+/// --locator filters --filter-type mosse --out target/fit-mosse`, run before these values were
+/// written in (the network's model steers which windows are read again, so a rerun gives close
+/// values): fitted on 3468 estimates of 817 faces and of 151 faces found with the annotated faces
+/// painted over (AUC 0.823 on them).
 pub(crate) const CONFIDENCE_MOSSE_WEIGHTS: [f64; 7] = [
-    1.042,  // ln weaker eye PSR
-    0.238,  // ln weaker nostril PSR
-    3.019,  // ln mouth PSR
-    1.074,  // ln nose-tip PSR
-    -9.038, // |k_nose_tip - k_mouth|
-    -0.327, // |roll| / 10 degrees
-    -0.558, // |eye distance / box width - 0.381| * 10
+    1.014,  // ln weaker eye PSR
+    -0.060, // ln weaker nostril PSR
+    2.245,  // ln mouth PSR
+    1.282,  // ln nose-tip PSR
+    -6.152, // |k_nose_tip - k_mouth|
+    -0.815, // |roll| / 10 degrees
+    -0.384, // |eye distance / box width - 0.381| * 10
 ];
 /// The intercept of the model of `CONFIDENCE_MOSSE_WEIGHTS`.
-pub(crate) const CONFIDENCE_MOSSE_INTERCEPT: f64 = -4.348;
+pub(crate) const CONFIDENCE_MOSSE_INTERCEPT: f64 = -2.890;
 
 /// Weights of the features of `pipeline::confidence::network_confidence`, in their order: a
 /// logistic model of the chance that a landmark-network estimate of a face is within 0.10 of the
 /// true shear.
 ///
-/// Fitted by `python3 scripts/fit_confidence.py target/d3 --model network --fit-first 300` on
-/// `unshear eval shear --k=0,0.4,-0.4 --min-confidence 0 --out target/d3` at commit 4ba5d5a, before
-/// the thorough face search was the default: fitted on 848 estimates of 300 faces, checked on 1782
-/// estimates of 628 other faces (AUC 0.762).
+/// Fitted by `python3 scripts/fit_confidence.py target/fit-network --model network` on `cargo run
+/// --release -- eval shear --faces unseen --min-eye-distance 12 --k=0,0.2,-0.2,0.4,-0.4 --face-free
+/// --min-confidence 0 --out target/fit-network`, run before these values were written in (the
+/// network's model steers which windows are read again, so a rerun gives close values): fitted on
+/// 3680 estimates of 817 faces and of 56 faces found with the annotated faces painted over (AUC
+/// 0.762 on them).
 pub(crate) const CONFIDENCE_NETWORK_WEIGHTS: [f64; 7] = [
-    -44.117, // wider eye heatmap spread (eye distances)
-    -12.666, // nose heatmap spread
-    -46.895, // mouth heatmap spread
-    -34.514, // |k_network - k_points|
-    23.092,  // |k_nose - k_mouth| (network axes)
-    0.843,   // |roll| / 10 degrees
-    -0.628,  // |eye distance / box width - 0.381| * 10
+    -25.573, // wider eye heatmap spread (eye distances)
+    -12.220, // nose heatmap spread
+    -15.282, // mouth heatmap spread
+    -4.446,  // |k_network - k_points|
+    -9.172,  // |k_nose - k_mouth| (network axes)
+    -0.295,  // |roll| / 10 degrees
+    -0.481,  // |eye distance / box width - 0.381| * 10
 ];
 /// The intercept of the model of `CONFIDENCE_NETWORK_WEIGHTS`.
-pub(crate) const CONFIDENCE_NETWORK_INTERCEPT: f64 = 27.316;
+pub(crate) const CONFIDENCE_NETWORK_INTERCEPT: f64 = 15.652;

@@ -106,6 +106,40 @@ impl Default for ExportOptions {
     }
 }
 
+/// Percentage of the faces that `scripts/train_landmarks.py` holds out of training (its
+/// `--val-percent` default).
+pub const HELD_OUT_PERCENT: u64 = 10;
+
+/// Whether `scripts/train_landmarks.py` holds the face with this index in the data set out of
+/// training: its rule `face * 2654435761 % 100 < 10`, a multiplicative hash that spreads the
+/// held-out faces over the data set.
+pub fn held_out_of_training(face_index: usize) -> bool {
+    (face_index as u64).wrapping_mul(2_654_435_761) % 100 < HELD_OUT_PERCENT
+}
+
+/// Which faces of a data set (all of its faces, in its order) the landmark network exported with
+/// `options` was never trained on, in photos no accuracy table measures: in the photos whose
+/// every face has eyes under `options.max_eye_distance` apart (the photos the export keeps, none
+/// of which `eval shear` measures by default), the faces with eyes under
+/// `options.min_eye_distance` (never exported) and those the trainer holds out. What is fitted
+/// to the pipeline's estimates (the confidence models) is fitted on these faces.
+pub fn unseen_faces(faces: &[AnnotatedFace], options: &ExportOptions) -> Vec<bool> {
+    let mut widest: std::collections::HashMap<&std::path::Path, f64> =
+        std::collections::HashMap::new();
+    for f in faces {
+        let d = widest.entry(f.image.as_path()).or_insert(0.0);
+        *d = d.max(f.eye_distance());
+    }
+    faces
+        .iter()
+        .enumerate()
+        .map(|(i, f)| {
+            widest[f.image.as_path()] < options.max_eye_distance
+                && (f.eye_distance() < options.min_eye_distance || held_out_of_training(i))
+        })
+        .collect()
+}
+
 /// What the export wrote.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct ExportSummary {
@@ -465,6 +499,38 @@ fn to_bytes(pixels: &[f32]) -> Vec<u8> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_held_out_faces_are_the_trainers() {
+        // The indices scripts/train_landmarks.py holds out among the first 60 (computed there).
+        let held: Vec<usize> = (0..60).filter(|&i| held_out_of_training(i)).collect();
+        assert_eq!(held, [0, 5, 23, 28, 41, 46]);
+        let share = (0..10_000).filter(|&i| held_out_of_training(i)).count();
+        assert!((900..=1100).contains(&share), "{share}");
+    }
+
+    #[test]
+    fn unseen_faces_are_small_or_held_out_in_photos_of_small_faces_only() {
+        let face = |image: &str, eyes: f64| AnnotatedFace {
+            image: image.into(),
+            right_eye: Point::new(0.0, 0.0),
+            left_eye: Point::new(eyes, 0.0),
+            nose: None,
+            mouth: None,
+        };
+        let faces = [
+            face("a", 20.0), // 0: held out, in a photo of small faces
+            face("a", 12.0), // 1: too small to be exported
+            face("a", 30.0), // 2: trained on
+            face("b", 20.0), // 3: a photo with a large face: measured, not fitted on
+            face("b", 50.0), // 4
+            face("b", 12.0), // 5: held out, but beside a large face
+        ];
+        assert!(held_out_of_training(0) && held_out_of_training(5));
+        assert!(!held_out_of_training(2));
+        let unseen = unseen_faces(&faces, &ExportOptions::default());
+        assert_eq!(unseen, [true, true, false, false, false, false]);
+    }
 
     #[test]
     fn normal_draws_have_unit_spread() {

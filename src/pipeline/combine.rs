@@ -125,8 +125,8 @@ pub struct Consensus {
 /// The consistent majority of the faces' accepted estimates: the estimates that fit in one
 /// window of width `2 FACE_UNCERTAINTY` (all within [`FACE_UNCERTAINTY`] of one shear) with
 /// the largest total confidence. When that total is more than half of all accepted faces'
-/// confidence, the image's shear is the group's confidence-weighted median and the faces outside
-/// it are outvoted; otherwise the faces disagree and the image gets no shear (a wrong correction
+/// confidence, the image's shear is the group's confidence-weighted median, moved if need be to
+/// within [`FACE_UNCERTAINTY`] of every face of the group, and the faces outside it are outvoted; otherwise the faces disagree and the image gets no shear (a wrong correction
 /// is worse than none). One face, or faces that all agree, is its own majority.
 pub fn consensus(faces: &[FaceReport]) -> Consensus {
     let accepted: Vec<(usize, f64, f64)> = faces
@@ -162,8 +162,17 @@ pub fn consensus(faces: &[FaceReport]) -> Consensus {
         };
     }
     let group: Vec<(usize, f64, f64)> = members(lo).collect();
+    // Where every face of the group can be right: within FACE_UNCERTAINTY of each. The
+    // weighted median of two faces is the heavier one's estimate, however slightly heavier.
+    let (least, most) = group
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), m| {
+            (a.min(m.1), b.max(m.1))
+        });
+    let all_right = (most - FACE_UNCERTAINTY)..=(least + FACE_UNCERTAINTY);
     Consensus {
-        k: weighted_median(group.iter().map(|m| (m.1, m.2))),
+        k: weighted_median(group.iter().map(|m| (m.1, m.2)))
+            .map(|k| k.clamp(*all_right.start(), *all_right.end())),
         outvoted: accepted
             .iter()
             .filter(|a| !group.iter().any(|m| m.0 == a.0))

@@ -216,6 +216,7 @@ impl Unshear {
             mouth: points.mouth,
             k: estimate.k,
             roll: estimate.roll,
+            nose_mouth_spread: None,
         };
         let (k, confidence, refused) = self.verdict(gray, &located, learned);
         Some(FaceReport {
@@ -305,6 +306,7 @@ impl Unshear {
             mouth: Some(found.mouth),
             k: found.k,
             roll: found.roll,
+            nose_mouth_spread: Some(found.spread[2].min(found.spread[3])),
         };
         let (k, confidence, refused) = self.verdict(gray, &located, learned);
         Some(FaceReport {

@@ -584,8 +584,13 @@ fn combined_shear_is_the_weighted_median_of_the_consistent_majority() {
     let split = [face(Some(0.0), 0.5), face(Some(0.3), 0.5)];
     let c = consensus(&split);
     assert_eq!((c.k, c.outvoted.len(), c.no_majority), (None, 0, true));
-    // Just beyond twice the uncertainty is a disagreement; just within is not.
+    // Two faces of about equal confidence far apart but within each other's uncertainty: not
+    // the slightly heavier one's estimate, but a shear both can be right about.
     let u = super::FACE_UNCERTAINTY;
+    let apart = [face(Some(0.1656), 0.977), face(Some(0.0099), 0.966)];
+    let k = combined_shear(&apart).expect("k");
+    assert!((k - (0.0099 + u)).abs() < 1e-12, "{k}");
+    // Just beyond twice the uncertainty is a disagreement; just within is not.
     assert!(combined_shear(&[face(Some(0.0), 0.5), face(Some(2.0 * u + 1e-3), 0.5)]).is_none());
     assert!(combined_shear(&[face(Some(0.0), 0.5), face(Some(2.0 * u - 1e-3), 0.5)]).is_some());
 }

@@ -453,6 +453,9 @@ pub struct EvalShearArgs {
     /// Only faces whose eye distance is at least this many pixels.
     #[arg(long, value_name = "PX", default_value_t = 40.0)]
     pub min_eye_distance: f64,
+    /// Which annotated faces to measure.
+    #[arg(long, value_enum, value_name = "WHICH", default_value_t = EvalFaces::Measured)]
+    pub faces: EvalFaces,
     /// Use at most this many faces (the first, in data-set order).
     #[arg(long, value_name = "N")]
     pub limit: Option<usize>,
@@ -619,6 +622,19 @@ pub struct VideoArgs {
     pub force: bool,
     #[command(flatten)]
     pub model: ModelArgs,
+}
+
+/// `eval shear --faces`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum EvalFaces {
+    /// The faces the accuracy tables measure: every face with eyes --min-eye-distance apart or
+    /// more.
+    Measured,
+    /// Faces to fit models of the pipeline's estimates on (the confidence models): those the
+    /// landmark network was never trained on (held out by its trainer, or too small), with eyes
+    /// --min-eye-distance apart or more, in photos whose faces all have eyes under 40 px apart
+    /// (none of which the accuracy tables measure).
+    Unseen,
 }
 
 /// `--k-source`.

@@ -20,7 +20,7 @@ use anyhow::{bail, Context, Result};
 use clap::Parser;
 
 use args::{
-    Cli, Command, CorrectArgs, DistortArgs, EstimateArgs, EvalCommand, EvalNostrilsArgs,
+    Cli, Command, CorrectArgs, DistortArgs, EstimateArgs, EvalCommand, EvalFaces, EvalNostrilsArgs,
     EvalRecognitionArgs, EvalShearArgs, TrainArgs,
 };
 use batch::{collect_inputs, run_ordered, shard, Collected, Input};
@@ -494,9 +494,19 @@ fn eval_shear(a: EvalShearArgs) -> Result<()> {
     let annotated = CaltechWebFaces::new(&a.data)
         .faces()
         .with_context(|| format!("reading the data set in {}", a.data.display()))?;
-    let (mut faces, mut also_annotated): (Vec<_>, Vec<_>) = annotated
+    let chosen = match a.faces {
+        EvalFaces::Measured => vec![true; annotated.len()],
+        EvalFaces::Unseen => unshear::dev::landmark_crops::unseen_faces(
+            &annotated,
+            &unshear::dev::landmark_crops::ExportOptions::default(),
+        ),
+    };
+    let (faces, also_annotated): (Vec<_>, Vec<_>) = annotated
         .into_iter()
-        .partition(|f| f.eye_distance() >= a.min_eye_distance);
+        .zip(chosen)
+        .partition(|(f, chosen)| *chosen && f.eye_distance() >= a.min_eye_distance);
+    let mut faces: Vec<_> = faces.into_iter().map(|(f, _)| f).collect();
+    let mut also_annotated: Vec<_> = also_annotated.into_iter().map(|(f, _)| f).collect();
     if let Some(n) = a.limit {
         also_annotated.extend(faces.split_off(n.min(faces.len())));
     }

@@ -29,7 +29,7 @@ use crate::error::{Error, Result};
 use crate::geometry::{Point, Shear};
 use crate::imageio;
 use crate::pipeline::confidence::{box_outside_share, face_layout};
-use crate::pipeline::Unshear;
+use crate::pipeline::{FaceReport, Unshear};
 use crate::stats::median;
 use crate::warp::rotate::{rotate_gray, Rotation};
 use crate::warp::{try_apply_shear, Canvas, Interpolation};
@@ -67,6 +67,9 @@ pub struct FaceFreeSample {
     pub accepted: usize,
     /// The image's accepted shear, which `correct` would undo.
     pub k: Option<f64>,
+    /// Every face reported (at `true_k` 0, centres in the photo's pixels): false faces, or
+    /// real faces the annotations leave out.
+    pub found: Vec<UnmatchedDetection>,
 }
 
 /// How far each way across from the eyes' midpoint [`face_free`] paints, in eye distances
@@ -109,6 +112,52 @@ pub fn face_free(img: &image::DynamicImage, faces: &[&AnnotatedFace]) -> image::
     rgb
 }
 
+/// What the pipeline read on a face besides its shear: the inputs of the confidence models
+/// (`pipeline::confidence`), which `scripts/fit_confidence.py` fits to. Each is `None` when the
+/// face was not found or the locator does not give it.
+#[derive(Debug, Clone, PartialEq, Default, Serialize)]
+pub struct Reading {
+    /// The nose axis's and the mouth axis's own estimates.
+    pub k_nose: Option<f64>,
+    /// See `k_nose`.
+    pub k_mouth: Option<f64>,
+    /// The nose-tip axis's own estimate (the nose filter's point).
+    pub k_nose_tip: Option<f64>,
+    /// The nose filter's peak-to-sidelobe ratio.
+    pub nose_tip_psr: Option<f64>,
+    /// Peak-to-sidelobe ratios (eyes, nostrils, mouth).
+    pub psr: Option<[f64; 5]>,
+    /// Located eye distance over the face box width.
+    pub eye_box_ratio: Option<f64>,
+    /// Located eye distance in the sheared image, pixels.
+    pub located_eye_distance: Option<f64>,
+    /// The landmark network's own reading of the shear (network locator only).
+    pub k_network: Option<f64>,
+    /// The shear the network's points give (network locator only).
+    pub k_points: Option<f64>,
+    /// The network's heatmap spreads, eye distances (network locator only).
+    pub spread: Option<[f64; 4]>,
+}
+
+impl Reading {
+    /// What `report` read on its face.
+    fn of(report: &FaceReport) -> Self {
+        let eyes = report.right_eye.distance(report.left_eye);
+        Self {
+            k_nose: report.k_nose,
+            k_mouth: report.k_mouth,
+            k_nose_tip: report.k_nose_tip,
+            nose_tip_psr: Some(report.nose_tip_psr),
+            psr: Some(report.psr),
+            eye_box_ratio: Some(eyes / report.face_box.width),
+            located_eye_distance: Some(eyes),
+            k_network: report.k_network,
+            k_points: report.k_points,
+            spread: report.spread,
+        }
+    }
+}
+
 /// A detection, kept by the pipeline, that contains no annotated face of its image (both eyes
 /// of none in its box). The data sets do not annotate every face (background and profile
 /// faces go without), so these bound the false faces from above: each is a false face or an
@@ -133,6 +182,31 @@ pub struct UnmatchedDetection {
     pub confidence: f64,
     /// The network's face score (network locator only).
     pub face_score: Option<f64>,
+    /// Why its estimate was refused (`low_confidence`, ...), when it was.
+    pub refused: Option<String>,
+    /// What the pipeline read on it.
+    #[serde(flatten)]
+    pub reading: Reading,
+}
+
+impl UnmatchedDetection {
+    /// The detection of `report` in `image` at shear `k`, its box centred at `centre` (in the
+    /// original image's pixels) and as wide as the report's.
+    fn of(image: &str, k: f64, centre: Point, report: &FaceReport) -> Self {
+        Self {
+            image: image.to_string(),
+            true_k: k,
+            centre: [centre.x, centre.y],
+            width: report.face_box.width,
+            measured: report.k_measured,
+            accepted: report.k.is_some(),
+            roll_degrees: report.roll_degrees,
+            confidence: report.confidence,
+            face_score: report.face_score,
+            refused: report.refused.map(|r| r.name().to_string()),
+            reading: Reading::of(report),
+        }
+    }
 }
 
 /// One face under one shear.
@@ -160,24 +234,9 @@ pub struct ShearSample {
     pub confidence: Option<f64>,
     /// The face's roll under the estimated shear, degrees.
     pub roll_degrees: Option<f64>,
-    /// The nose axis's and the mouth axis's own estimates.
-    pub k_nose: Option<f64>,
-    /// See `k_nose`.
-    pub k_mouth: Option<f64>,
-    /// The nose-tip axis's own estimate (the nose filter's point).
-    pub k_nose_tip: Option<f64>,
-    /// The nose filter's peak-to-sidelobe ratio, when the face was found.
-    pub nose_tip_psr: Option<f64>,
-    /// Peak-to-sidelobe ratios (eyes, nostrils, mouth), when the face was found.
-    pub psr: Option<[f64; 5]>,
-    /// Located eye distance over the face box width, when the face was found.
-    pub eye_box_ratio: Option<f64>,
-    /// The landmark network's own reading of the shear (network locator only).
-    pub k_network: Option<f64>,
-    /// The shear the network's points give (network locator only).
-    pub k_points: Option<f64>,
-    /// The network's heatmap spreads, eye distances (network locator only).
-    pub spread: Option<[f64; 4]>,
+    /// What the pipeline read on the face, when it was found.
+    #[serde(flatten)]
+    pub reading: Reading,
     /// The network's face score (network locator only).
     pub face_score: Option<f64>,
     /// Worst of the two eyes' localisation errors, as a fraction of the eye distance.
@@ -263,11 +322,17 @@ pub fn evaluate_shear_in_context(
                     .map_err(|e| format!("{}: {e}", path.display()))?;
                 let painted = image::DynamicImage::ImageRgb8(face_free(&full, &known));
                 let report = unshear.estimate(&painted);
+                let image = path.display().to_string();
                 Some(FaceFreeSample {
-                    image: path.display().to_string(),
                     faces: report.faces.len(),
                     accepted: report.faces.iter().filter(|f| f.k.is_some()).count(),
                     k: report.k,
+                    found: report
+                        .faces
+                        .iter()
+                        .map(|f| UnmatchedDetection::of(&image, 0.0, f.face_box.center(), f))
+                        .collect(),
+                    image,
                 })
             } else {
                 None
@@ -390,16 +455,10 @@ fn run_one(
             }
             let c = shear.invert(placement.to_frame(b.center()));
             let c = rotation.map_or(c, |r| r.to_input(c));
+            let c = Point::new(c.x + origin.x, c.y + origin.y);
             Some(UnmatchedDetection {
-                image: path.display().to_string(),
-                true_k: k,
-                centre: [c.x + origin.x, c.y + origin.y],
                 width: b.width,
-                measured: r.k_measured,
-                accepted: r.k.is_some(),
-                roll_degrees: r.roll_degrees,
-                confidence: r.confidence,
-                face_score: r.face_score,
+                ..UnmatchedDetection::of(&path.display().to_string(), k, c, r)
             })
         })
         .collect();
@@ -432,15 +491,7 @@ fn run_one(
                 measured: report.map(|d| d.k_measured),
                 confidence: report.map(|d| d.confidence),
                 roll_degrees: report.map(|d| d.roll_degrees),
-                k_nose: report.and_then(|d| d.k_nose),
-                k_mouth: report.and_then(|d| d.k_mouth),
-                k_nose_tip: report.and_then(|d| d.k_nose_tip),
-                nose_tip_psr: report.map(|d| d.nose_tip_psr),
-                psr: report.map(|d| d.psr),
-                eye_box_ratio: report.map(|d| d.right_eye.distance(d.left_eye) / d.face_box.width),
-                k_network: report.and_then(|d| d.k_network),
-                k_points: report.and_then(|d| d.k_points),
-                spread: report.and_then(|d| d.spread),
+                reading: report.map(Reading::of).unwrap_or_default(),
                 face_score: report.and_then(|d| d.face_score),
                 eye_error: report
                     .map(|d| d.right_eye.distance(re).max(d.left_eye.distance(le)) / ed),
@@ -711,8 +762,10 @@ impl ShearEvalResult {
         serde_json::to_string_pretty(&self.samples).unwrap_or_else(|_| "[]".into())
     }
 
-    /// Writes `samples.csv`, `samples.json`, `unmatched.csv` (see [`Self::unmatched_csv`]),
-    /// `face_free.csv` (with [`ShearEvalOptions::face_free`]: image, faces, accepted, k),
+    /// Writes `samples.csv`, `samples.json`, `unmatched.csv` (see [`Self::unmatched_csv`]) and
+    /// `unmatched.json` (every field, with what the pipeline read),
+    /// `face_free.csv` and `face_free.json` (with [`ShearEvalOptions::face_free`]: image, faces,
+    /// accepted, k; the JSON also every face found),
     /// `summary.md`, `estimates.png` (estimated vs true k) and `errors.png` (estimate-error
     /// histograms per k) into `dir` (created if needed).
     pub fn write_outputs(&self, dir: &Path) -> Result<()> {
@@ -728,6 +781,10 @@ impl ShearEvalResult {
         write("samples.csv", self.csv())?;
         write("samples.json", self.json())?;
         write("unmatched.csv", self.unmatched_csv())?;
+        write(
+            "unmatched.json",
+            serde_json::to_string_pretty(&self.unmatched).unwrap_or_else(|_| "[]".into()),
+        )?;
         if !self.face_free.is_empty() {
             let mut csv = String::from("image,faces,accepted,k\n");
             for f in &self.face_free {
@@ -735,6 +792,10 @@ impl ShearEvalResult {
                 let _ = writeln!(csv, "{},{},{},{k}", f.image, f.faces, f.accepted);
             }
             write("face_free.csv", csv)?;
+            write(
+                "face_free.json",
+                serde_json::to_string_pretty(&self.face_free).unwrap_or_else(|_| "[]".into()),
+            )?;
         }
         let mut md = self.markdown();
         let _ = write!(
@@ -988,11 +1049,39 @@ mod protocol_tests {
             "samples.csv",
             "samples.json",
             "unmatched.csv",
+            "unmatched.json",
             "summary.md",
             "estimates.png",
             "errors.png",
         ] {
             assert!(dir.path().join(f).is_file(), "{f}");
+        }
+    }
+
+    #[test]
+    fn readings_are_flat_fields_of_the_json() {
+        // scripts/fit_confidence.py reads the confidence models' inputs as top-level keys.
+        let reading = Reading {
+            spread: Some([0.2, 0.2, 0.3, 0.3]),
+            located_eye_distance: Some(41.0),
+            ..Default::default()
+        };
+        let sample = ShearSample {
+            reading: reading.clone(),
+            ..Default::default()
+        };
+        let unmatched = UnmatchedDetection {
+            reading,
+            refused: Some("low_confidence".into()),
+            ..Default::default()
+        };
+        for json in [
+            serde_json::to_value(&sample).expect("serializes"),
+            serde_json::to_value(&unmatched).expect("serializes"),
+        ] {
+            assert_eq!(json["located_eye_distance"], 41.0);
+            assert_eq!(json["spread"][2], 0.3);
+            assert!(json["k_points"].is_null());
         }
     }
 
