@@ -30,65 +30,62 @@ pub(crate) const EYE_PAIR_WEIGHTS: [f64; 10] = [
 /// Weights of the features of `pipeline::confidence::confidence`, in their order, for UMACE
 /// filters: a logistic model of the chance that an estimate is within 0.10 of the true shear.
 ///
-/// Fitted by `python3 scripts/fit_confidence.py target/fit-umace --model umace` on `cargo run
-/// --release -- eval shear --faces unseen --min-eye-distance 12 --k=0,0.2,-0.2,0.4,-0.4 --face-free
-/// --locator filters --filter-type umace --out target/fit-umace`, run before these values were
-/// written in (the network's model steers which windows are read again, so a rerun gives close
-/// values): fitted on 3363 estimates of 817 faces and of 170 faces found with the annotated faces
-/// painted over (AUC 0.785 on them).
+/// Fitted by `python3 scripts/fit_confidence.py target/regenerate/fit-umace --model umace` on
+/// `cargo run --release -- eval shear --faces unseen --min-eye-distance 12 --k=0,0.2,-0.2,0.4,-0.4
+/// --face-free --locator filters --filter-type umace --out target/regenerate/fit-umace`: fitted on
+/// 3389 estimates of 817 faces and of 171 faces found with the annotated faces painted over (AUC
+/// 0.776 on them).
 pub(crate) const CONFIDENCE_UMACE_WEIGHTS: [f64; 7] = [
-    0.611,  // ln weaker eye PSR
-    0.143,  // ln weaker nostril PSR
-    2.165,  // ln mouth PSR
-    0.608,  // ln nose-tip PSR
-    -3.250, // |k_nose_tip - k_mouth|
-    -0.347, // |roll| / 10 degrees
-    -0.629, // |eye distance / box width - 0.381| * 10
+    0.723,  // ln weaker eye PSR
+    0.076,  // ln weaker nostril PSR
+    2.042,  // ln mouth PSR
+    0.435,  // ln nose-tip PSR
+    -2.048, // |k_nose_tip - k_mouth|
+    -0.525, // |roll| / 10 degrees
+    -0.674, // |eye distance / box width - 0.381| * 10
 ];
 /// The intercept of the model of `CONFIDENCE_UMACE_WEIGHTS`.
-pub(crate) const CONFIDENCE_UMACE_INTERCEPT: f64 = -2.847;
+pub(crate) const CONFIDENCE_UMACE_INTERCEPT: f64 = -2.725;
 
 /// Weights of the features of `pipeline::confidence::confidence`, in their order, for ASEF filters:
 /// a logistic model of the chance that an estimate is within 0.10 of the true shear.
 ///
-/// Fitted by `python3 scripts/fit_confidence.py target/fit-asef --model asef` on `cargo run
-/// --release -- eval shear --faces unseen --min-eye-distance 12 --k=0,0.2,-0.2,0.4,-0.4 --face-free
-/// --locator filters --filter-type asef --out target/fit-asef`, run before these values were
-/// written in (the network's model steers which windows are read again, so a rerun gives close
-/// values): fitted on 3477 estimates of 817 faces and of 153 faces found with the annotated faces
-/// painted over (AUC 0.825 on them).
+/// Fitted by `python3 scripts/fit_confidence.py target/regenerate/fit-asef --model asef` on `cargo
+/// run --release -- eval shear --faces unseen --min-eye-distance 12 --k=0,0.2,-0.2,0.4,-0.4
+/// --face-free --locator filters --filter-type asef --out target/regenerate/fit-asef`: fitted on
+/// 3514 estimates of 817 faces and of 159 faces found with the annotated faces painted over (AUC
+/// 0.830 on them).
 pub(crate) const CONFIDENCE_ASEF_WEIGHTS: [f64; 7] = [
-    1.061,  // ln weaker eye PSR
-    -0.012, // ln weaker nostril PSR
-    2.496,  // ln mouth PSR
-    1.018,  // ln nose-tip PSR
-    -5.035, // |k_nose_tip - k_mouth|
-    -0.778, // |roll| / 10 degrees
-    -0.370, // |eye distance / box width - 0.381| * 10
+    1.059,  // ln weaker eye PSR
+    -0.086, // ln weaker nostril PSR
+    2.439,  // ln mouth PSR
+    0.971,  // ln nose-tip PSR
+    -5.306, // |k_nose_tip - k_mouth|
+    -0.842, // |roll| / 10 degrees
+    -0.307, // |eye distance / box width - 0.381| * 10
 ];
 /// The intercept of the model of `CONFIDENCE_ASEF_WEIGHTS`.
-pub(crate) const CONFIDENCE_ASEF_INTERCEPT: f64 = -3.052;
+pub(crate) const CONFIDENCE_ASEF_INTERCEPT: f64 = -2.768;
 
 /// Weights of the features of `pipeline::confidence::confidence`, in their order, for MOSSE
 /// filters: a logistic model of the chance that an estimate is within 0.10 of the true shear.
 ///
-/// Fitted by `python3 scripts/fit_confidence.py target/fit-mosse --model mosse` on `cargo run
-/// --release -- eval shear --faces unseen --min-eye-distance 12 --k=0,0.2,-0.2,0.4,-0.4 --face-free
-/// --locator filters --filter-type mosse --out target/fit-mosse`, run before these values were
-/// written in (the network's model steers which windows are read again, so a rerun gives close
-/// values): fitted on 3468 estimates of 817 faces and of 151 faces found with the annotated faces
-/// painted over (AUC 0.823 on them).
+/// Fitted by `python3 scripts/fit_confidence.py target/regenerate/fit-mosse --model mosse` on
+/// `cargo run --release -- eval shear --faces unseen --min-eye-distance 12 --k=0,0.2,-0.2,0.4,-0.4
+/// --face-free --locator filters --filter-type mosse --out target/regenerate/fit-mosse`: fitted on
+/// 3515 estimates of 817 faces and of 167 faces found with the annotated faces painted over (AUC
+/// 0.820 on them).
 pub(crate) const CONFIDENCE_MOSSE_WEIGHTS: [f64; 7] = [
-    1.014,  // ln weaker eye PSR
-    -0.060, // ln weaker nostril PSR
-    2.245,  // ln mouth PSR
-    1.282,  // ln nose-tip PSR
-    -6.152, // |k_nose_tip - k_mouth|
-    -0.815, // |roll| / 10 degrees
-    -0.384, // |eye distance / box width - 0.381| * 10
+    0.862,  // ln weaker eye PSR
+    -0.070, // ln weaker nostril PSR
+    2.334,  // ln mouth PSR
+    1.144,  // ln nose-tip PSR
+    -4.925, // |k_nose_tip - k_mouth|
+    -0.805, // |roll| / 10 degrees
+    -0.299, // |eye distance / box width - 0.381| * 10
 ];
 /// The intercept of the model of `CONFIDENCE_MOSSE_WEIGHTS`.
-pub(crate) const CONFIDENCE_MOSSE_INTERCEPT: f64 = -2.890;
+pub(crate) const CONFIDENCE_MOSSE_INTERCEPT: f64 = -2.761;
 
 /// Weights of the features of `pipeline::confidence::network_confidence`, in their order: a
 /// logistic model of the chance that a landmark-network estimate of a face is within 0.10 of the

@@ -124,6 +124,26 @@ pub fn held_out_of_training(face_index: usize) -> bool {
 /// `options.min_eye_distance` (never exported) and those the trainer holds out. What is fitted
 /// to the pipeline's estimates (the confidence models) is fitted on these faces.
 pub fn unseen_faces(faces: &[AnnotatedFace], options: &ExportOptions) -> Vec<bool> {
+    split(faces, options, |seen| !seen)
+}
+
+/// Which faces of a data set (all of its faces, in its order) the landmark network exported with
+/// `options` is trained on: the faces of [`unseen_faces`]' photos with eyes at least
+/// `options.min_eye_distance` apart that the trainer does not hold out. The eye filters are
+/// trained on these faces too ([`crate::dev::train::TrainFaces::Unmeasured`]), so that neither
+/// the faces the accuracy tables measure nor those the confidence models are fitted on are
+/// trained on.
+pub fn trained_faces(faces: &[AnnotatedFace], options: &ExportOptions) -> Vec<bool> {
+    split(faces, options, |seen| seen)
+}
+
+/// For each face: whether its photo has every face's eyes under `options.max_eye_distance`
+/// apart, and `keep` of whether the trainer sees it (exported and not held out).
+fn split(
+    faces: &[AnnotatedFace],
+    options: &ExportOptions,
+    keep: impl Fn(bool) -> bool,
+) -> Vec<bool> {
     let mut widest: std::collections::HashMap<&std::path::Path, f64> =
         std::collections::HashMap::new();
     for f in faces {
@@ -134,8 +154,8 @@ pub fn unseen_faces(faces: &[AnnotatedFace], options: &ExportOptions) -> Vec<boo
         .iter()
         .enumerate()
         .map(|(i, f)| {
-            widest[f.image.as_path()] < options.max_eye_distance
-                && (f.eye_distance() < options.min_eye_distance || held_out_of_training(i))
+            let seen = f.eye_distance() >= options.min_eye_distance && !held_out_of_training(i);
+            widest[f.image.as_path()] < options.max_eye_distance && keep(seen)
         })
         .collect()
 }
@@ -530,6 +550,10 @@ mod tests {
         assert!(!held_out_of_training(2));
         let unseen = unseen_faces(&faces, &ExportOptions::default());
         assert_eq!(unseen, [true, true, false, false, false, false]);
+        // The trained faces are the rest of the small-face photo's faces of exportable size:
+        // never a face that is unseen, nor one beside a large face.
+        let trained = trained_faces(&faces, &ExportOptions::default());
+        assert_eq!(trained, [false, false, true, false, false, false]);
     }
 
     #[test]

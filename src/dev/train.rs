@@ -48,11 +48,27 @@ const CHUNK: usize = 128;
 /// `TRANSLATION_SEED + i`.
 const TRANSLATION_SEED: u64 = 0x756e_7368_6561_7266;
 
+/// Which faces of the data set [`train_eye_filters`] may train on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TrainFaces {
+    /// Every face (of at least [`TrainOptions::min_eye_distance`]).
+    All,
+    /// The faces the landmark network trains on
+    /// ([`crate::dev::landmark_crops::trained_faces`]): faces with eyes 15 px apart or more in
+    /// photos whose faces all have eyes under 40 px apart, less the faces its trainer holds out. No face that `eval shear` measures by
+    /// default, nor one the confidence models are fitted on (`--faces unseen`), is trained on.
+    /// The data set must be given whole and in its order (the held-out rule goes by index).
+    Unmeasured,
+}
+
 /// Options for [`train_eye_filters`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrainOptions {
-    /// Faces whose eye distance is below this (pixels) are skipped: they would be enlarged more
-    /// than about 1.9x to reach the 150-px face and add blur rather than detail.
+    /// Which faces to train on.
+    pub faces: TrainFaces,
+    /// Faces whose eye distance is below this (pixels) are skipped: each face is enlarged to
+    /// about 57 px between the eyes (the 150-px normalised face), and smaller faces add blur
+    /// rather than detail.
     pub min_eye_distance: f64,
     /// Also add each face's mirror image (the mirrored left eye trains the right-eye filter and
     /// vice versa), doubling the training set and making the left-eye filter the mirror image
@@ -71,7 +87,8 @@ pub struct TrainOptions {
 impl Default for TrainOptions {
     fn default() -> Self {
         Self {
-            min_eye_distance: 30.0,
+            faces: TrainFaces::Unmeasured,
+            min_eye_distance: MIN_EYE_DISTANCE,
             mirror: true,
             min_patches: 1500,
             filter_type: FilterType::DEFAULT,
@@ -79,11 +96,16 @@ impl Default for TrainOptions {
     }
 }
 
+/// [`TrainOptions::min_eye_distance`]'s default, pixels.
+pub const MIN_EYE_DISTANCE: f64 = 25.0;
+
 /// What training used.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct TrainSummary {
     /// Faces used.
     pub faces: usize,
+    /// Faces left out by [`TrainOptions::faces`].
+    pub not_selected: usize,
     /// Faces skipped for a small eye distance.
     pub too_small: usize,
     /// Images that could not be read (skipped).
@@ -98,8 +120,19 @@ pub fn train_eye_filters(
     options: &TrainOptions,
 ) -> Result<(EyeFilters, TrainSummary)> {
     let mut summary = TrainSummary::default();
+    let selected = match options.faces {
+        TrainFaces::All => vec![true; faces.len()],
+        TrainFaces::Unmeasured => crate::dev::landmark_crops::trained_faces(
+            &faces,
+            &crate::dev::landmark_crops::ExportOptions::default(),
+        ),
+    };
+    summary.not_selected = selected.iter().filter(|&&s| !s).count();
     let usable: Vec<AnnotatedFace> = faces
         .into_iter()
+        .zip(selected)
+        .filter(|(_, s)| *s)
+        .map(|(f, _)| f)
         .filter(|f| {
             let ok = f.eye_distance() >= options.min_eye_distance;
             summary.too_small += usize::from(!ok);
@@ -318,6 +351,7 @@ mod tests {
         let faces = dataset(dir.path(), 8);
         for kind in FilterType::ALL {
             let options = TrainOptions {
+                faces: TrainFaces::All,
                 min_eye_distance: 30.0,
                 mirror: true,
                 min_patches: 16,
@@ -431,6 +465,7 @@ mod tests {
         };
         faces.push(small);
         let options = TrainOptions {
+            faces: TrainFaces::All,
             min_patches: 2,
             ..Default::default()
         };
@@ -439,7 +474,18 @@ mod tests {
             (summary.faces, summary.too_small, summary.unreadable.len()),
             (2, 1, 1)
         );
+        // Every photo here holds a face with eyes 50 px apart, one that `eval shear` measures:
+        // the default selection leaves all of them out, and too few patches remain.
+        let unmeasured = TrainOptions {
+            min_patches: 2,
+            ..Default::default()
+        };
+        assert!(matches!(
+            train_eye_filters(faces.clone(), &unmeasured),
+            Err(Error::Training(_))
+        ));
         let strict = TrainOptions {
+            faces: TrainFaces::All,
             min_patches: 1500,
             ..Default::default()
         };

@@ -86,16 +86,15 @@ pub const MAX_ROLL: f64 = 1.0;
 
 /// How far the mouth's shear is extrapolated away from the nose tip's to cancel yaw:
 /// `k = k_mouth + YAW_EXTRAPOLATION (k_mouth - k_nose_tip)`. On hand-annotated points 0.5 cancels
-/// yaw best; located points amplify the nose point's error by the same factor, so a smaller
-/// value was chosen on development faces (`scripts/yaw_factor.py`, docs/how-it-works.md).
-pub const YAW_EXTRAPOLATION: f64 = 0.3;
+/// yaw best; located points amplify the nose point's error by the same factor, so the value is
+/// chosen on located points of faces no accuracy table measures (`scripts/yaw_factor.py` on
+/// the `--faces unseen` runs of the three filter types, steps of 0.1: 0.1 is best).
+pub const YAW_EXTRAPOLATION: f64 = 0.1;
 
 /// [`YAW_EXTRAPOLATION`] for the nostrils' axis, used when the nose filter's point is missing
 /// (features located in a view the caller gave). The nostrils sit nearer the face's plane than
-/// the nose tip, and the eye filter locates them less surely: on the located points of all 928
-/// development faces at every shear the best value was 0.1-0.2 (within 0.05: 30-35% of the
-/// faces, against 26-33% at 0.5).
-pub const YAW_EXTRAPOLATION_NOSTRILS: f64 = 0.15;
+/// the nose tip and are located less surely: chosen as above, the mouth's own axis (0) is best.
+pub const YAW_EXTRAPOLATION_NOSTRILS: f64 = 0.0;
 
 /// The shear and roll of a face (see the module docs).
 #[derive(Debug, Clone, Copy, PartialEq)]

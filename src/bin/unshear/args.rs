@@ -399,8 +399,11 @@ pub struct TrainArgs {
         default_value = "../shared/data/caltech-webfaces"
     )]
     pub data: PathBuf,
+    /// Which faces to train on.
+    #[arg(long, value_enum, value_name = "WHICH", default_value = "unmeasured")]
+    pub faces: TrainFacesArg,
     /// Skip faces whose eye distance is below this many pixels.
-    #[arg(long, value_name = "PX", default_value_t = 30.0)]
+    #[arg(long, value_name = "PX", default_value_t = unshear::dev::train::MIN_EYE_DISTANCE)]
     pub min_eye_distance: f64,
     /// Train on the faces as they are only, not also on their mirror images (the default adds
     /// them, as the built-in filters were trained).
@@ -635,6 +638,27 @@ pub enum EvalFaces {
     /// --min-eye-distance apart or more, in photos whose faces all have eyes under 40 px apart
     /// (none of which the accuracy tables measure).
     Unseen,
+}
+
+/// `train --faces`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum TrainFacesArg {
+    /// The faces the landmark network trains on (as the built-in filters were trained): in
+    /// photos whose faces all have eyes under 40 px apart, less those its trainer holds out, so
+    /// that no face `eval shear` measures or fits the confidence models on is trained on.
+    /// Expects the Caltech set whole.
+    Unmeasured,
+    /// Every face of the data set.
+    All,
+}
+
+impl From<TrainFacesArg> for unshear::dev::train::TrainFaces {
+    fn from(a: TrainFacesArg) -> Self {
+        match a {
+            TrainFacesArg::Unmeasured => Self::Unmeasured,
+            TrainFacesArg::All => Self::All,
+        }
+    }
 }
 
 /// `--k-source`.

@@ -442,6 +442,7 @@ fn train(a: TrainArgs) -> Result<()> {
         .faces()
         .with_context(|| format!("reading the data set in {}", a.data.display()))?;
     let options = unshear::dev::train::TrainOptions {
+        faces: a.faces.into(),
         min_eye_distance: a.min_eye_distance,
         mirror: !a.no_mirror,
         filter_type: a.filter_type.map_or(FilterType::DEFAULT, FilterType::from),
@@ -467,12 +468,13 @@ fn train(a: TrainArgs) -> Result<()> {
         },
     )?;
     eprintln!(
-        "unshear: trained {} filters on {} faces ({} crops per feature{}, {} patches per filter; {} faces below {} px eye distance skipped) -> {}",
+        "unshear: trained {} filters on {} faces ({} crops per feature{}, {} patches per filter; {} faces not selected, {} below {} px eye distance skipped) -> {}",
         filters.kind,
         summary.faces,
         summary.crops,
         if a.no_mirror { "" } else { ", mirrored copies included" },
         filters.right_eye.training_count,
+        summary.not_selected,
         summary.too_small,
         a.min_eye_distance,
         path.display()
