@@ -71,7 +71,9 @@ fn frame_with_geometry(
 }
 
 /// How far the mouth axis's shear is extrapolated away from the nose axis's to cancel yaw, for
-/// the network's points (see [`crate::estimate::yaw_corrected`]).
+/// the network's points (see [`crate::estimate::yaw_corrected`]). Not tuned (the filters' value
+/// when the network was added): with [`NETWORK_SHEAR_WEIGHT`] at 1 the points' shear only feeds
+/// the confidence feature `|k_network - k_points|`, whose weight is fitted with it.
 pub(crate) const NETWORK_YAW_EXTRAPOLATION: f64 = 0.3;
 
 /// The weight of the network's own reading of the shear in the estimate; the rest is the shear
