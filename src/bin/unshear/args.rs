@@ -633,8 +633,9 @@ pub enum EvalFaces {
     /// The faces the accuracy tables measure: every face with eyes --min-eye-distance apart or
     /// more.
     Measured,
-    /// Faces to fit models of the pipeline's estimates on (the confidence models): those the
-    /// landmark network was never trained on (held out by its trainer, or too small), with eyes
+    /// Faces to fit models of the pipeline's estimates on (the confidence models, the filters' yaw
+    /// factors): those the landmark network and the filters were never trained on (held out by
+    /// the network's trainer, or too small), with eyes
     /// --min-eye-distance apart or more, in photos whose faces all have eyes under 40 px apart
     /// (none of which the accuracy tables measure).
     Unseen,
