@@ -124,7 +124,10 @@ pub fn held_out_of_training(face_index: usize) -> bool {
 /// `options.min_eye_distance` (never exported) and those the trainer holds out. What is fitted
 /// to the pipeline's estimates (the confidence models) is fitted on these faces.
 pub fn unseen_faces(faces: &[AnnotatedFace], options: &ExportOptions) -> Vec<bool> {
-    split(faces, options, |seen| !seen)
+    trainer_sees(faces, options)
+        .into_iter()
+        .map(|seen| seen == Some(false))
+        .collect()
 }
 
 /// Which faces of a data set (all of its faces, in its order) the landmark network exported with
@@ -134,16 +137,16 @@ pub fn unseen_faces(faces: &[AnnotatedFace], options: &ExportOptions) -> Vec<boo
 /// the faces the accuracy tables measure nor those the confidence models are fitted on are
 /// trained on.
 pub fn trained_faces(faces: &[AnnotatedFace], options: &ExportOptions) -> Vec<bool> {
-    split(faces, options, |seen| seen)
+    trainer_sees(faces, options)
+        .into_iter()
+        .map(|seen| seen == Some(true))
+        .collect()
 }
 
-/// For each face: whether its photo has every face's eyes under `options.max_eye_distance`
-/// apart, and `keep` of whether the trainer sees it (exported and not held out).
-fn split(
-    faces: &[AnnotatedFace],
-    options: &ExportOptions,
-    keep: impl Fn(bool) -> bool,
-) -> Vec<bool> {
+/// For each face: `None` when its photo holds a face with eyes `options.max_eye_distance` apart
+/// or more (a photo the accuracy tables measure), else whether the trainer sees it (exported
+/// and not held out).
+fn trainer_sees(faces: &[AnnotatedFace], options: &ExportOptions) -> Vec<Option<bool>> {
     let mut widest: std::collections::HashMap<&std::path::Path, f64> =
         std::collections::HashMap::new();
     for f in faces {
@@ -154,8 +157,8 @@ fn split(
         .iter()
         .enumerate()
         .map(|(i, f)| {
-            let seen = f.eye_distance() >= options.min_eye_distance && !held_out_of_training(i);
-            widest[f.image.as_path()] < options.max_eye_distance && keep(seen)
+            (widest[f.image.as_path()] < options.max_eye_distance)
+                .then(|| f.eye_distance() >= options.min_eye_distance && !held_out_of_training(i))
         })
         .collect()
 }

@@ -55,8 +55,9 @@ pub enum TrainFaces {
     All,
     /// The faces the landmark network trains on
     /// ([`crate::dev::landmark_crops::trained_faces`]): faces with eyes 15 px apart or more in
-    /// photos whose faces all have eyes under 40 px apart, less the faces its trainer holds out. No face that `eval shear` measures by
-    /// default, nor one the confidence models are fitted on (`--faces unseen`), is trained on.
+    /// photos whose faces all have eyes under 40 px apart, less the faces its trainer holds out.
+    /// No face that `eval shear` measures by default, nor one the confidence models are fitted
+    /// on (`--faces unseen`), is trained on.
     /// The data set must be given whole and in its order (the held-out rule goes by index).
     Unmeasured,
 }

@@ -126,8 +126,9 @@ pub struct Consensus {
 /// window of width `2 FACE_UNCERTAINTY` (all within [`FACE_UNCERTAINTY`] of one shear) with
 /// the largest total confidence. When that total is more than half of all accepted faces'
 /// confidence, the image's shear is the group's confidence-weighted median, moved if need be to
-/// within [`FACE_UNCERTAINTY`] of every face of the group, and the faces outside it are outvoted; otherwise the faces disagree and the image gets no shear (a wrong correction
-/// is worse than none). One face, or faces that all agree, is its own majority.
+/// within [`FACE_UNCERTAINTY`] of every face of the group, and the faces outside it are
+/// outvoted; otherwise the faces disagree and the image gets no shear (a wrong correction is
+/// worse than none). One face, or faces that all agree, is its own majority.
 pub fn consensus(faces: &[FaceReport]) -> Consensus {
     let accepted: Vec<(usize, f64, f64)> = faces
         .iter()

@@ -635,9 +635,9 @@ pub enum EvalFaces {
     Measured,
     /// Faces to fit models of the pipeline's estimates on (the confidence models, the filters' yaw
     /// factors): those the landmark network and the filters were never trained on (held out by
-    /// the network's trainer, or too small), with eyes
-    /// --min-eye-distance apart or more, in photos whose faces all have eyes under 40 px apart
-    /// (none of which the accuracy tables measure).
+    /// the network's trainer, or too small), with eyes --min-eye-distance apart or more, in
+    /// photos whose faces all have eyes under 40 px apart (none of which the accuracy tables
+    /// measure).
     Unseen,
 }
 
