@@ -36,22 +36,28 @@ fn same_face(a: &FaceReport, b: &FaceReport) -> bool {
 
 /// Of faces whose boxes overlap (IoU 0.3 or more), whose estimates located the same face
 /// ([`same_face`]), or of which one's box holds both eyes located in another kept before it, the
-/// one with the most confident estimate (a face without an estimate last), preferring one whose
-/// box holds both eyes it located: a box the features were followed out of (from a false alarm
-/// beside the face, say) does not show where the face is. A box holding both eyes of a face
-/// already kept is that face seen again, often from a view that takes in the whole head, whose
-/// walk of crops may have stopped on something else (eyes of two faces, say) before reaching
-/// it; two people's faces cannot both fit in one face box.
+/// one with the most confident estimate (a face without an estimate last; between equally
+/// confident ones, such as two refused with confidence 0, the higher face score), preferring one
+/// whose box holds both eyes it located: a box the features were followed out of (from a false
+/// alarm beside the face, say) does not show where the face is. The face score decides between
+/// refused readings of one spot whatever order they were found in: seen on a close, turned face
+/// in glasses, where one lens and the cheek read as a small face (score 0.987) had hidden the
+/// whole face (0.999). A box holding both eyes of a face already kept is that face seen again,
+/// often from a view that takes in the whole head, whose walk of crops may have stopped on
+/// something else (eyes of two faces, say) before reaching it; two people's faces cannot both
+/// fit in one face box.
 pub(crate) fn most_confident_of_overlapping(
     mut all: Vec<(Rect, Option<FaceReport>)>,
 ) -> Vec<(Rect, Option<FaceReport>)> {
     let confidence = |r: &Option<FaceReport>| r.as_ref().map_or(-1.0, |r| r.confidence);
+    let face_score = |r: &Option<FaceReport>| r.and_then(|r| r.face_score).unwrap_or(-1.0);
     let holds_its_eyes =
         |(b, r): &(Rect, Option<FaceReport>)| r.as_ref().is_some_and(|r| holds_eyes(b, r));
     all.sort_by(|a, b| {
         holds_its_eyes(b)
             .cmp(&holds_its_eyes(a))
             .then(confidence(&b.1).total_cmp(&confidence(&a.1)))
+            .then(face_score(&b.1).total_cmp(&face_score(&a.1)))
     });
     let mut kept: Vec<(Rect, Option<FaceReport>)> = Vec::new();
     for f in all {

@@ -1,4 +1,4 @@
-use super::combine::{combined_shear, consensus, most_confident_of_overlapping};
+use super::combine::{combined_shear, consensus, holds_eyes, most_confident_of_overlapping};
 use super::proposals::{
     proposal_detection, proposal_eyes, proposal_is_new, proposal_shows, settle_unsure_faces,
     window_is_new, HIDING_MIN_CONFIDENCE,
@@ -300,6 +300,33 @@ fn overlapping_faces_keep_the_most_confident_estimate() {
         "the most confident of the three overlapping"
     );
     assert!(kept[1].1.is_none() && kept[1].0.x == 400.0);
+}
+
+#[test]
+fn equally_confident_faces_keep_the_higher_face_score_whatever_came_first() {
+    // A close face, refused, and a "face" on one of its eyes and cheek, refused too and found
+    // first: the whole face's box holds the small one's eyes, so kept after it, the whole face
+    // would be dropped as that face seen again.
+    let refused = |x: f64, d: f64, score: f64| FaceReport {
+        face_box: Rect::new(x - 1.3 * d, 100.0 - 0.9 * d, 2.6 * d, 2.6 * d),
+        right_eye: Point::new(x - d / 2.0, 100.0),
+        left_eye: Point::new(x + d / 2.0, 100.0),
+        face_score: Some(score),
+        refused: Some(Refusal::NotFaceLike),
+        ..face(None, 0.0)
+    };
+    let (part, whole) = (refused(330.0, 38.0, 0.987), refused(300.0, 97.0, 0.999));
+    assert!(holds_eyes(&whole.face_box, &part), "the case: a duplicate");
+    for order in [[part, whole], [whole, part]] {
+        let kept = most_confident_of_overlapping(order.map(|r| (r.face_box, Some(r))).to_vec());
+        assert_eq!(
+            kept[0].1.unwrap().face_score,
+            Some(0.999),
+            "the whole face first"
+        );
+        // The small one's box does not hold the whole face's eyes: a report of its own.
+        assert_eq!(kept.len(), 2);
+    }
 }
 
 #[test]
