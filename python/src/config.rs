@@ -1,7 +1,7 @@
 //! The corrector's settings, as Python keyword arguments: parsed and checked here, turned into
 //! the library's `Config` by [`to_config`] (as the CLI turns its flags into one).
 
-use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::exceptions::{PyOverflowError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
@@ -70,6 +70,13 @@ impl Default for PyConfig {
     }
 }
 
+/// Most crops the network may read per face (as the CLI's `--max-crops`).
+const MAX_CROPS: i128 = 64;
+/// The largest values of the unsigned types, as [`integer`]'s bounds.
+pub const U32_MAX: i128 = u32::MAX as i128;
+pub const U64_MAX: i128 = u64::MAX as i128;
+pub const USIZE_MAX: i128 = usize::MAX as i128;
+
 /// The keyword names, in the order `Unshear.config` lists them.
 pub const KEYS: [&str; 16] = [
     "detector",
@@ -114,18 +121,57 @@ fn type_name(value: &Bound<'_, PyAny>) -> String {
         .map_or_else(|_| "?".to_string(), |n| n.to_string())
 }
 
-fn number<T: for<'a, 'py> FromPyObject<'a, 'py>>(
+/// An integer setting or argument in `min..=max` (and in `T`'s range): `TypeError` for what is
+/// not an integer (`bool` included: `True` is no count of pixels or frames), `ValueError`
+/// naming the range for one outside it (negative for an unsigned value, or too large).
+pub fn integer<T: TryFrom<i128>>(
     key: &str,
     value: &Bound<'_, PyAny>,
-    what: &str,
+    min: i128,
+    max: i128,
 ) -> PyResult<T> {
     if value.is_instance_of::<pyo3::types::PyBool>() {
         return Err(PyTypeError::new_err(format!(
-            "{key} must be {what}, got bool"
+            "{key} must be an integer, got bool"
         )));
     }
-    value.extract::<T>().map_err(|_| {
-        PyTypeError::new_err(format!("{key} must be {what}, got {}", type_name(value)))
+    let out_of_range =
+        |got: String| PyValueError::new_err(format!("{key} must be {min} to {max}, got {got}"));
+    match value.extract::<i128>() {
+        Ok(n) if (min..=max).contains(&n) => {
+            T::try_from(n).map_err(|_| out_of_range(n.to_string()))
+        }
+        Ok(n) => Err(out_of_range(n.to_string())),
+        // An integer beyond i128: out of range, whatever the range.
+        Err(e) if e.is_instance_of::<PyOverflowError>(value.py()) => Err(out_of_range(
+            value
+                .str()
+                .map_or_else(|_| "?".to_string(), |s| s.to_string()),
+        )),
+        Err(_) => Err(PyTypeError::new_err(format!(
+            "{key} must be an integer, got {}",
+            type_name(value)
+        ))),
+    }
+}
+
+/// A number setting or argument (a float or an int, not `bool`): `TypeError` for anything
+/// else, `ValueError` for an int too large for a float. NaN and infinities pass: the callers
+/// check the range.
+pub fn real(key: &str, value: &Bound<'_, PyAny>) -> PyResult<f64> {
+    if value.is_instance_of::<pyo3::types::PyBool>() {
+        return Err(PyTypeError::new_err(format!(
+            "{key} must be a number, got bool"
+        )));
+    }
+    value.extract::<f64>().map_err(|e| {
+        if e.is_instance_of::<PyOverflowError>(value.py()) {
+            PyValueError::new_err(format!(
+                "{key} must be a finite number, got an int too large for a float"
+            ))
+        } else {
+            PyTypeError::new_err(format!("{key} must be a number, got {}", type_name(value)))
+        }
     })
 }
 
@@ -148,12 +194,17 @@ fn floats(key: &str, value: &Bound<'_, PyAny>) -> PyResult<Option<Vec<f64>>> {
             "{key} must be a sequence of numbers or None, got str"
         )));
     }
-    let list = value.extract::<Vec<f64>>().map_err(|_| {
+    let items = value.extract::<Vec<Bound<'_, PyAny>>>().map_err(|_| {
         PyTypeError::new_err(format!(
             "{key} must be a sequence of numbers or None, got {}",
             type_name(value)
         ))
     })?;
+    let list = items
+        .iter()
+        .enumerate()
+        .map(|(i, item)| real(&format!("{key}[{i}]"), item))
+        .collect::<PyResult<_>>()?;
     Ok(Some(list))
 }
 
@@ -214,14 +265,14 @@ impl PyConfig {
                 "detector" => c.detector = Some(choice(&key, &value, &DETECTORS)?),
                 "locator" => c.locator = choice(&key, &value, &LOCATORS)?,
                 "search" => c.search = Some(choice(&key, &value, &SEARCHES)?),
-                "min_confidence" => c.min_confidence = number(&key, &value, "a number")?,
-                "max_crops" => c.max_crops = Some(number(&key, &value, "an integer")?),
-                "refinements" => c.refinements = number(&key, &value, "an integer")?,
+                "min_confidence" => c.min_confidence = real(&key, &value)?,
+                "max_crops" => c.max_crops = Some(integer(&key, &value, 1, MAX_CROPS)?),
+                "refinements" => c.refinements = integer(&key, &value, 0, USIZE_MAX)?,
                 "shear_model" => c.shear_model = Some(choice(&key, &value, &SHEAR_MODELS)?),
                 "filter_type" => c.filter_type = choice(&key, &value, &FILTER_TYPES)?,
-                "min_face" => c.min_face = Some(number(&key, &value, "an integer")?),
-                "min_neighbors" => c.min_neighbors = number(&key, &value, "an integer")?,
-                "scale_factor" => c.scale_factor = number(&key, &value, "a number")?,
+                "min_face" => c.min_face = Some(integer(&key, &value, 0, U32_MAX)?),
+                "min_neighbors" => c.min_neighbors = integer(&key, &value, 0, U32_MAX)?,
+                "scale_factor" => c.scale_factor = real(&key, &value)?,
                 "proposals" => c.proposals = flag(&key, &value)?,
                 "fallback_cascade" => c.fallback_cascade = flag(&key, &value)?,
                 "search_every_view" => c.search_every_view = flag(&key, &value)?,
@@ -239,15 +290,11 @@ impl PyConfig {
         Ok(c)
     }
 
-    /// The checks the CLI makes of its flags before the library sees them (clap's ranges and
-    /// conflicts); `Config::validate` checks the values themselves when the corrector is built.
+    /// The checks the CLI makes of its flags before the library sees them (clap's conflicts; the
+    /// ranges were checked as the values were parsed); `Config::validate` checks the values
+    /// themselves when the corrector is built.
     pub fn validate(&self) -> PyResult<()> {
         let bad = |m: &str| Err(PyValueError::new_err(m.to_string()));
-        if let Some(n) = self.max_crops {
-            if !(1..=64).contains(&n) {
-                return bad(&format!("max_crops must be 1 to 64, got {n}"));
-            }
-        }
         if self.detector == Some(Detector::Network) && self.search.is_some() {
             return bad("search chooses the views of detector=\"viola-jones\"; the network detector has none");
         }

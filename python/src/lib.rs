@@ -4,6 +4,7 @@
 //! Every call copies its arrays into owned image buffers with the GIL held, then releases the GIL
 //! (`Python::detach`) for all the work in Rust, and takes it again only to build the results.
 
+mod args;
 mod config;
 mod image;
 mod report;
@@ -88,15 +89,6 @@ pub fn interp_of(name: &str) -> PyResult<Interpolation> {
     }
 }
 
-fn finite(name: &str, v: Option<f64>) -> PyResult<()> {
-    match v {
-        Some(x) if !x.is_finite() => Err(PyValueError::new_err(format!(
-            "{name} must be a finite number, got {x}"
-        ))),
-        _ => Ok(()),
-    }
-}
-
 /// The rolling-shutter corrector: the built-in models with one set of settings, built once and
 /// used for any number of images, from any number of threads.
 #[pyclass(name = "Unshear", module = "unshear", frozen)]
@@ -135,7 +127,11 @@ impl PyUnshear {
 impl PyUnshear {
     #[new]
     #[pyo3(signature = (*, max_pixels = DEFAULT_MAX_PIXELS, **config))]
-    fn new(py: Python<'_>, max_pixels: u64, config: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
+    fn new(
+        py: Python<'_>,
+        #[pyo3(from_py_with = args::max_pixels)] max_pixels: u64,
+        config: Option<&Bound<'_, PyDict>>,
+    ) -> PyResult<Self> {
         let cfg = PyConfig::from_kwargs("Unshear", config)?;
         let inner = py.detach(|| build(&cfg, Use::Stills)).map_err(to_pyerr)?;
         Ok(Self {
@@ -172,16 +168,10 @@ impl PyUnshear {
         &self,
         py: Python<'_>,
         images: &Bound<'_, PyAny>,
-        threads: Option<usize>,
+        #[pyo3(from_py_with = args::threads)] threads: Option<usize>,
         bgr: bool,
     ) -> PyResult<Vec<Report>> {
-        let pool = match threads {
-            Some(0) => {
-                return Err(PyValueError::new_err("threads must be at least 1"));
-            }
-            Some(n) => Some(self.pool(n)?),
-            None => None,
-        };
+        let pool = threads.map(|n| self.pool(n)).transpose()?;
         let inputs: Vec<DynamicImage> = images
             .try_iter()?
             .map(|item| Ok(self.input(py, &item?, bgr)?.image))
@@ -208,14 +198,13 @@ impl PyUnshear {
         &self,
         py: Python<'py>,
         image: &Bound<'py, PyAny>,
-        k: Option<f64>,
+        #[pyo3(from_py_with = args::optional_k)] k: Option<f64>,
         region: &str,
         canvas: &str,
         interp: &str,
         report: Option<PyRef<'_, Report>>,
         bgr: bool,
     ) -> PyResult<Bound<'py, PyAny>> {
-        finite("k", k)?;
         let options = CorrectOptions {
             region: region_of(region)?,
             canvas: canvas_of(canvas)?,
@@ -288,7 +277,12 @@ impl PyUnshear {
 /// decoding) into a numpy array.
 #[pyfunction]
 #[pyo3(signature = (path, *, bgr = false, max_pixels = DEFAULT_MAX_PIXELS))]
-fn read(py: Python<'_>, path: PathBuf, bgr: bool, max_pixels: u64) -> PyResult<Bound<'_, PyAny>> {
+fn read(
+    py: Python<'_>,
+    path: PathBuf,
+    bgr: bool,
+    #[pyo3(from_py_with = args::max_pixels)] max_pixels: u64,
+) -> PyResult<Bound<'_, PyAny>> {
     let img = py
         .detach(|| imageio::read_image(&path, max_pixels))
         .map_err(to_pyerr)?;
@@ -306,7 +300,7 @@ fn write(
     image: &Bound<'_, PyAny>,
     bgr: bool,
     overwrite: bool,
-    jpeg_quality: u8,
+    #[pyo3(from_py_with = args::jpeg_quality)] jpeg_quality: u8,
 ) -> PyResult<()> {
     if !imageio::output_format_supported(&path) {
         return Err(PyValueError::new_err(format!(
@@ -330,13 +324,11 @@ fn write(
 fn distort<'py>(
     py: Python<'py>,
     image: &Bound<'py, PyAny>,
-    k: f64,
-    pivot: Option<f64>,
+    #[pyo3(from_py_with = args::k)] k: f64,
+    #[pyo3(from_py_with = args::pivot)] pivot: Option<f64>,
     canvas: &str,
     interp: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
-    finite("k", Some(k))?;
-    finite("pivot", pivot)?;
     let canvas = canvas_of(canvas)?;
     let interp = interp_of(interp)?;
     let Input { image, layout } = from_array(py, image, false, DEFAULT_MAX_PIXELS)?;

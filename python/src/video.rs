@@ -12,13 +12,11 @@ use unshear::video::temporal::FilterParams;
 use unshear::video::tracker::TrackerParams;
 use unshear::video::{FrameResult, KSource, ProcessOptions, VideoFrame, VideoProcessor};
 
+use crate::args;
 use crate::config::{build, PyConfig, Use};
 use crate::image::{from_array, to_array, Layout};
 use crate::report::{faces, Face};
 use crate::{interp_of, to_pyerr};
-
-/// Frames the smoother may hold back (as `unshear video --smoothing-lag`).
-const MAX_SMOOTHING_LAG: usize = 250;
 
 type Processor<'a> = VideoProcessor<'a>;
 
@@ -189,34 +187,21 @@ impl VideoCorrector {
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
-        fps: f64,
-        smoothing_lag: usize,
-        redetect: u64,
-        lost_interval: u64,
-        detect_width: u32,
-        hold: f64,
-        decay: f64,
+        #[pyo3(from_py_with = args::fps)] fps: f64,
+        #[pyo3(from_py_with = args::smoothing_lag)] smoothing_lag: usize,
+        #[pyo3(from_py_with = args::redetect)] redetect: u64,
+        #[pyo3(from_py_with = args::lost_interval)] lost_interval: u64,
+        #[pyo3(from_py_with = args::detect_width)] detect_width: u32,
+        #[pyo3(from_py_with = args::hold)] hold: f64,
+        #[pyo3(from_py_with = args::decay)] decay: f64,
         k_source: &str,
         interp: &str,
         correct: bool,
         bgr: bool,
-        max_pixels: u64,
+        #[pyo3(from_py_with = args::max_pixels)] max_pixels: u64,
         config: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<Self> {
-        if !(fps.is_finite() && fps > 0.0) {
-            return Err(bad(format!("fps must be a positive number, got {fps}")));
-        }
-        if !(hold.is_finite() && hold >= 0.0 && decay.is_finite() && decay > 0.0) {
-            return Err(bad("hold must be >= 0 and decay > 0 seconds".into()));
-        }
-        if redetect == 0 || lost_interval == 0 {
-            return Err(bad("redetect and lost_interval must be at least 1".into()));
-        }
-        if smoothing_lag > MAX_SMOOTHING_LAG {
-            return Err(bad(format!(
-                "smoothing_lag must be at most {MAX_SMOOTHING_LAG} frames (frames are held in memory)"
-            )));
-        }
+        // The numbers were checked as they were taken (`args`).
         let k_source = match k_source {
             "filtered" => KSource::Filtered,
             "raw" => KSource::Raw,

@@ -163,7 +163,7 @@ def test_every_setting_round_trips() -> None:
         ({"min_confidence": 1.5}, ValueError, "outside 0 to 1"),
         ({"min_confidence": "high"}, TypeError, "min_confidence must be a number"),
         ({"max_crops": 0}, ValueError, "1 to 64"),
-        ({"max_crops": -1}, TypeError, "max_crops must be an integer"),
+        ({"max_crops": -1}, ValueError, "max_crops must be 1 to 64, got -1"),
         ({"max_crops": 2.5}, TypeError, "max_crops must be an integer"),
         ({"scale_factor": 1.0}, ValueError, "above 1"),
         ({"proposals": 1}, TypeError, "True or False"),

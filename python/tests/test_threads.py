@@ -69,7 +69,7 @@ def test_estimate_many_matches_estimate(quick: unshear.Unshear, batch: list[np.n
     # A 4-D batch (N x H x W x C, as Ray Data hands over same-sized images) is N images.
     stacked = np.stack([batch[1], batch[1]])
     assert [r.to_dict() for r in quick.estimate_many(stacked)] == [one_by_one[1]] * 2
-    with pytest.raises(ValueError, match="at least 1"):
+    with pytest.raises(ValueError, match="threads must be 1 to 65535, got 0"):
         quick.estimate_many(batch, threads=0)
     with pytest.raises(ValueError, match="uint8 or uint16"):
         quick.estimate_many([batch[0], batch[1].astype(np.float32)])

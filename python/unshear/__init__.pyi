@@ -159,7 +159,9 @@ class Unshear:
       views' rolls in degrees (default ``None``: the search's own).
 
     ``max_pixels`` bounds the images accepted (default 250,000,000). Bad settings raise
-    ``ValueError`` (bad values) or ``TypeError`` (unknown names, wrong types).
+    ``ValueError`` naming the setting and its range for bad values (out of range, negative or
+    too large integers, NaN or infinite numbers) or ``TypeError`` for unknown names and wrong
+    types (a float or ``bool`` for an integer, ``bool`` or a string for a number).
     """
 
     def __new__(
@@ -198,9 +200,9 @@ class Unshear:
     def estimate_many(
         self, images: Iterable[Image], *, threads: int | None = None, bgr: bool = False
     ) -> list[Report]:
-        """``estimate`` on every image, in parallel on ``threads`` threads (default: one per
-        core); the reports come back in the images' order. Every image is copied first, so
-        memory grows with the batch."""
+        """``estimate`` on every image, in parallel on ``threads`` threads (1 to 65535; default:
+        one per core); the reports come back in the images' order. Every image is copied first,
+        so memory grows with the batch."""
     def correct(
         self,
         image: Image,
@@ -221,7 +223,7 @@ class Unshear:
         pixels. ``interp``: ``"linear"`` or ``"cubic"``.
 
         Raises ``NoFaceError`` (a ``ValueError``) when no face gave an accepted estimate and no
-        ``k`` was given.
+        ``k`` was given, ``ValueError`` for a NaN or infinite ``k``.
         """
 
 @final
@@ -265,6 +267,11 @@ class VideoCorrector:
     have the first one's size, channels and dtype. The settings of ``Unshear`` are accepted too
     (``max_crops`` defaults to 2 and ``shear_model`` to equation5 here, as for ``unshear
     video``).
+
+    ``smoothing_lag`` is 0 to 250 frames (they are held in memory); ``redetect`` and
+    ``lost_interval`` are at least 1 frame; ``detect_width`` is in pixels (0: full size);
+    ``fps`` and ``decay`` are above 0, ``hold`` at least 0 (seconds). Bad values raise
+    ``ValueError`` and wrong types ``TypeError``, as for ``Unshear``.
     """
 
     def __new__(
@@ -326,7 +333,8 @@ def write(
 ) -> None:
     """Writes ``image`` to ``path``, its format from the extension (``.jpg``, ``.png``,
     ``.pgm``/``.ppm``, ``.bmp``, ``.tif``, ``.webp``), through a temporary file renamed into
-    place. ``overwrite=False`` raises ``FileExistsError`` for an existing file."""
+    place. ``overwrite=False`` raises ``FileExistsError`` for an existing file. ``jpeg_quality``
+    (1 to 100, else ``ValueError``) is the JPEG encoder's quality."""
 
 def distort(
     image: Image,
@@ -338,4 +346,5 @@ def distort(
 ) -> Image:
     """Applies a shear as a rolling shutter would: a point ``(x, y)`` moves to
     ``x + k (y - pivot)`` (``pivot`` default: the middle row, ``H / 2``). ``distort(image,
-    -k)`` is ``Unshear.correct(image, k)``."""
+    -k)`` is ``Unshear.correct(image, k)``. A NaN or infinite ``k`` or ``pivot`` raises
+    ``ValueError``."""

@@ -1,0 +1,110 @@
+//! The numeric arguments of the functions and constructors (`#[pyo3(from_py_with = ...)]`), with
+//! the checks of the settings ([`integer`], [`real`]): `TypeError` naming the argument for a
+//! value of the wrong type (`bool` included), `ValueError` naming it and its range for a value
+//! outside it (negative for a count, too large for its type, NaN or infinite). Without them
+//! pyo3's conversions raise `OverflowError` for negative counts and take `True` for 1.
+
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+
+use crate::config::{integer, real, U32_MAX, U64_MAX};
+
+/// Most threads `estimate_many` starts (as the CLI's `--jobs`, a `u16`).
+pub const MAX_THREADS: i128 = u16::MAX as i128;
+
+/// Frames the smoother may hold back (as `unshear video --smoothing-lag`): frames are held in
+/// memory.
+pub const MAX_SMOOTHING_LAG: i128 = 250;
+
+fn finite(key: &str, value: &Bound<'_, PyAny>) -> PyResult<f64> {
+    let x = real(key, value)?;
+    if !x.is_finite() {
+        return Err(PyValueError::new_err(format!(
+            "{key} must be a finite number, got {x}"
+        )));
+    }
+    Ok(x)
+}
+
+fn optional<T>(
+    value: &Bound<'_, PyAny>,
+    get: impl FnOnce(&Bound<'_, PyAny>) -> PyResult<T>,
+) -> PyResult<Option<T>> {
+    if value.is_none() {
+        Ok(None)
+    } else {
+        get(value).map(Some)
+    }
+}
+
+pub fn max_pixels(value: &Bound<'_, PyAny>) -> PyResult<u64> {
+    integer("max_pixels", value, 0, U64_MAX)
+}
+
+pub fn threads(value: &Bound<'_, PyAny>) -> PyResult<Option<usize>> {
+    optional(value, |v| integer("threads", v, 1, MAX_THREADS))
+}
+
+/// The JPEG quality, 1 to 100 (`WriteOptions` would clamp what is outside).
+pub fn jpeg_quality(value: &Bound<'_, PyAny>) -> PyResult<u8> {
+    integer("jpeg_quality", value, 1, 100)
+}
+
+pub fn k(value: &Bound<'_, PyAny>) -> PyResult<f64> {
+    finite("k", value)
+}
+
+pub fn optional_k(value: &Bound<'_, PyAny>) -> PyResult<Option<f64>> {
+    optional(value, k)
+}
+
+pub fn pivot(value: &Bound<'_, PyAny>) -> PyResult<Option<f64>> {
+    optional(value, |v| finite("pivot", v))
+}
+
+pub fn fps(value: &Bound<'_, PyAny>) -> PyResult<f64> {
+    let x = real("fps", value)?;
+    if !(x.is_finite() && x > 0.0) {
+        return Err(PyValueError::new_err(format!(
+            "fps must be a positive number, got {x}"
+        )));
+    }
+    Ok(x)
+}
+
+pub fn hold(value: &Bound<'_, PyAny>) -> PyResult<f64> {
+    let x = real("hold", value)?;
+    if !(x.is_finite() && x >= 0.0) {
+        return Err(PyValueError::new_err(format!(
+            "hold must be a finite number of seconds >= 0, got {x}"
+        )));
+    }
+    Ok(x)
+}
+
+pub fn decay(value: &Bound<'_, PyAny>) -> PyResult<f64> {
+    let x = real("decay", value)?;
+    if !(x.is_finite() && x > 0.0) {
+        return Err(PyValueError::new_err(format!(
+            "decay must be a finite number of seconds > 0, got {x}"
+        )));
+    }
+    Ok(x)
+}
+
+pub fn smoothing_lag(value: &Bound<'_, PyAny>) -> PyResult<usize> {
+    integer("smoothing_lag", value, 0, MAX_SMOOTHING_LAG)
+}
+
+pub fn redetect(value: &Bound<'_, PyAny>) -> PyResult<u64> {
+    integer("redetect", value, 1, U64_MAX)
+}
+
+pub fn lost_interval(value: &Bound<'_, PyAny>) -> PyResult<u64> {
+    integer("lost_interval", value, 1, U64_MAX)
+}
+
+/// The width full detection shrinks frames to (0: full size).
+pub fn detect_width(value: &Bound<'_, PyAny>) -> PyResult<u32> {
+    integer("detect_width", value, 0, U32_MAX)
+}
