@@ -512,3 +512,74 @@ fn truncated_stream_still_yields_the_frames_before_the_cut() {
     assert_eq!(seen, (0..7).collect::<Vec<u64>>());
     assert_eq!(output_frames(&writer.finish().expect("flush")).len(), 7);
 }
+
+/// `--json=FILE` naming the output is a usage error that creates nothing; `-o` into missing
+/// folders creates them; a gap in a frame folder's numbering is warned about.
+#[test]
+fn json_over_output_missing_folders_and_numbering_gaps() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let frames: Vec<_> = clip().into_iter().take(4).collect();
+    let clip_path = dir.path().join("clip.y4m");
+    std::fs::write(&clip_path, y4m_bytes(&frames)).expect("write clip");
+    let unshear = || Command::cargo_bin("unshear").expect("binary");
+
+    let out = dir.path().join("o.y4m");
+    for force in [true, false] {
+        let mut cmd = unshear();
+        cmd.args(["video", "--no-correct"])
+            .arg(&clip_path)
+            .arg("-o")
+            .arg(&out)
+            .arg(format!("--json={}", out.display()));
+        if force {
+            cmd.arg("--force");
+        }
+        let run = cmd.assert().code(2);
+        let stderr = String::from_utf8_lossy(&run.get_output().stderr).into_owned();
+        assert!(stderr.contains("name the same file"), "{stderr}");
+        assert!(!out.exists(), "nothing is created when the run is refused");
+    }
+    // An existing output without --force: refused before the JSON file is made.
+    std::fs::write(&out, b"kept").expect("write");
+    let json = dir.path().join("frames.jsonl");
+    unshear()
+        .args(["video", "--no-correct"])
+        .arg(&clip_path)
+        .arg("-o")
+        .arg(&out)
+        .arg(format!("--json={}", json.display()))
+        .assert()
+        .code(1);
+    assert!(!json.exists());
+    assert_eq!(std::fs::read(&out).expect("kept"), b"kept");
+
+    // Missing folders above the output.
+    let deep = dir.path().join("nd/x/out.y4m");
+    unshear()
+        .args(["video", "--no-correct"])
+        .arg(&clip_path)
+        .arg("-o")
+        .arg(&deep)
+        .assert()
+        .success();
+    assert!(deep.is_file());
+
+    // A gap in the numbering: 000003 then 000007.
+    let folder = dir.path().join("gappy");
+    std::fs::create_dir(&folder).expect("mkdir");
+    for (i, (img, _)) in [1, 2, 3, 7].iter().zip(&frames) {
+        img.save(folder.join(format!("{i:06}.png"))).expect("save");
+    }
+    let run = unshear()
+        .args(["video", "--no-correct"])
+        .arg(&folder)
+        .arg("-o")
+        .arg(dir.path().join("gappy.y4m"))
+        .assert()
+        .success();
+    let stderr = String::from_utf8_lossy(&run.get_output().stderr).into_owned();
+    assert!(
+        stderr.contains("skips from 000003.png to 000007.png (3 frames missing)"),
+        "{stderr}"
+    );
+}

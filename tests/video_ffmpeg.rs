@@ -2,8 +2,10 @@
 //! sound track and a rotation flag, made by ffmpeg from a sheared fixture face, comes out with
 //! its sound, frame count, duration and rotation and the face's shear measured on every frame;
 //! a 10-bit HEVC clip and a 10-bit y4m stay 10-bit; a truncated file, a failing encoder, an
-//! ffmpeg killed half-way and Ctrl-C leave no output; a missing ffmpeg is a clear error. Tests
-//! that need ffmpeg print a note and pass when it is not installed.
+//! ffmpeg killed half-way and Ctrl-C leave no output; a missing ffmpeg is a clear error; an
+//! odd-size 4:2:0 stream is padded for H.264 and kept for FFV1; an FFV1 input stays FFV1;
+//! missing output folders are created. Tests that need ffmpeg print a note and pass when it is
+//! not installed.
 
 mod common;
 
@@ -729,4 +731,129 @@ fn variable_frame_rate_keeps_picture_and_sound_in_step() {
         frames > 50.0,
         "frames repeated where the rate dropped: {frames}"
     );
+}
+
+/// A grey gradient y4m of an odd size (65x49, 4:2:0, 3 frames): its last column and row differ
+/// from their neighbours, so a padding that repeats them can be told from one that does not.
+fn odd_y4m() -> Vec<u8> {
+    let format = VideoFormat {
+        width: 65,
+        height: 49,
+        ..format(8)
+    };
+    let mut w = Y4mWriter::new(Vec::new(), &format).expect("header");
+    for _ in 0..3 {
+        let mut f = YuvFrame::blank(&format);
+        f.y = GrayImage::from_fn(65, 49, |x, y| Luma([(16 + 3 * x + y) as u8]));
+        w.write_frame(&f).expect("frame");
+    }
+    w.finish().expect("flush")
+}
+
+/// `(codec, width, height)` of a file's video stream.
+fn video_size(file: &Path) -> (String, f64, f64) {
+    let s = streams(file);
+    let v = stream(&s, "video");
+    (
+        v["codec_name"].as_str().unwrap_or("").to_string(),
+        v["width"].as_f64().unwrap_or(0.0),
+        v["height"].as_f64().unwrap_or(0.0),
+    )
+}
+
+/// An odd-size 4:2:0 stream into H.264 (which needs an even size): padded by one column and
+/// row that repeat the edge, with a warning; into FFV1 the size is kept.
+#[test]
+fn odd_size_420_is_padded_for_x264_and_kept_for_ffv1() {
+    let Some(dir) = ffmpeg_test_dir(
+        "libx264",
+        "odd_size_420_is_padded_for_x264_and_kept_for_ffv1",
+    ) else {
+        return;
+    };
+    let input = dir.path().join("odd.y4m");
+    std::fs::write(&input, odd_y4m()).expect("write y4m");
+    let out = dir.path().join("odd.mp4");
+    let run = run_ok(video_cmd(&input, &out).arg("--no-correct"));
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains("padded to 66x50 by repeating the last column and row"),
+        "{stderr}"
+    );
+    assert_eq!(video_size(&out), ("h264".into(), 66.0, 50.0));
+    // The added column and row repeat the last ones (within x264's rounding at CRF 18).
+    let raw = dir.path().join("odd.gray");
+    ffmpeg(
+        &[
+            "-i",
+            path(&out),
+            "-frames:v",
+            "1",
+            "-f",
+            "rawvideo",
+            "-pix_fmt",
+            "gray",
+            path(&raw),
+        ],
+        None,
+    );
+    let luma = std::fs::read(&raw).expect("raw frame");
+    let at = |x: usize, y: usize| i32::from(luma[y * 66 + x]);
+    for y in [0, 20, 48] {
+        assert!(
+            (at(65, y) - at(64, y)).abs() <= 3,
+            "row {y}: {} {}",
+            at(64, y),
+            at(65, y)
+        );
+    }
+    for x in [0, 30, 64] {
+        assert!((at(x, 49) - at(x, 48)).abs() <= 3, "column {x}");
+    }
+    assert_temporaries_gone(dir.path());
+    if has_encoder(
+        "ffv1",
+        "odd_size_420_is_padded_for_x264_and_kept_for_ffv1 (ffv1)",
+    ) {
+        let out = dir.path().join("odd.mkv");
+        let run = run_ok(video_cmd(&input, &out).args(["--no-correct", "--codec", "ffv1"]));
+        assert!(!String::from_utf8_lossy(&run.stderr).contains("padded"));
+        assert_eq!(video_size(&out), ("ffv1".into(), 65.0, 49.0));
+    }
+}
+
+fn assert_temporaries_gone(dir: &Path) {
+    assert_eq!(temporaries(dir), Vec::<String>::new());
+}
+
+/// An FFV1 input is written as FFV1 (lossless, as it came) by default, not re-encoded with
+/// libx264; its odd size is kept.
+#[test]
+fn ffv1_input_keeps_its_codec() {
+    let Some(dir) = ffmpeg_test_dir("ffv1", "ffv1_input_keeps_its_codec") else {
+        return;
+    };
+    let y4m = dir.path().join("odd.y4m");
+    std::fs::write(&y4m, odd_y4m()).expect("write y4m");
+    let input = dir.path().join("odd420.mkv");
+    ffmpeg(&["-i", path(&y4m), "-c:v", "ffv1", path(&input)], None);
+    let out = dir.path().join("out.mkv");
+    let run = run_ok(video_cmd(&input, &out).arg("--no-correct"));
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(stderr.contains("video ffv1"), "{stderr}");
+    assert_eq!(video_size(&out), ("ffv1".into(), 65.0, 49.0));
+}
+
+/// `-o` into folders that do not exist yet: they are created, for a video file as for y4m.
+#[test]
+fn missing_output_folders_are_created() {
+    let Some(dir) = ffmpeg_test_dir("libx264", "missing_output_folders_are_created") else {
+        return;
+    };
+    let input = dir.path().join("in.y4m");
+    std::fs::write(&input, y4m8(&frames()[..3])).expect("write y4m");
+    let out = dir.path().join("nd/x/out.mp4");
+    run_ok(video_cmd(&input, &out).arg("--no-correct"));
+    assert_eq!(video_size(&out).0, "h264");
+    assert_temporaries_gone(&dir.path().join("nd/x"));
 }

@@ -599,8 +599,89 @@ fn encoders_for(codec: &str) -> &'static [&'static str] {
         "prores" => &["prores_ks"],
         "mpeg4" => &["mpeg4"],
         "mjpeg" => &["mjpeg"],
+        "mpeg2video" => &["mpeg2video"],
+        // Lossless codecs: re-encoded losslessly, as they came.
+        "ffv1" => &["ffv1"],
+        "utvideo" => &["utvideo"],
+        "huffyuv" => &["huffyuv"],
+        "ffvhuff" => &["ffvhuff"],
+        "magicyuv" => &["magicyuv"],
         _ => &[],
     }
+}
+
+/// Encoders known to take frames of any size in every chroma layout (checked with FFmpeg 5.1
+/// on 641x361 4:2:0). The others (`libx264`, `libx265`, `libsvtav1`, `utvideo`, `huffyuv`,
+/// `ffvhuff`, hardware encoders, and FFmpeg's unnamed default) are taken to need an even
+/// width for 4:2:0 and 4:2:2 and an even height for 4:2:0.
+const ANY_SIZE_ENCODERS: &[&str] = &[
+    "ffv1",
+    "libvpx",
+    "libvpx-vp9",
+    "libaom-av1",
+    "mpeg4",
+    "mpeg2video",
+    "prores_ks",
+    "prores",
+    "mjpeg",
+    "magicyuv",
+    "rawvideo",
+];
+
+/// The size `encoder` (`None`: FFmpeg's default for the container) is given frames of
+/// `width` x `height` in `chroma` at: `None` when it takes that size as it is; otherwise the
+/// width (4:2:0, 4:2:2) and height (4:2:0) rounded up to even, which encoders of subsampled
+/// chroma such as `libx264` need (their chroma planes cover two luma columns and rows). The
+/// chroma planes already cover the padded size (y4m rounds their size up); the luma plane is
+/// padded by repeating its last column and row ([`pad_luma`]).
+pub fn even_size(
+    encoder: Option<&str>,
+    width: u32,
+    height: u32,
+    chroma: crate::video::Chroma,
+) -> Option<(u32, u32)> {
+    if encoder.is_some_and(|e| ANY_SIZE_ENCODERS.contains(&e)) {
+        return None;
+    }
+    let (hs, vs) = chroma.subsampling();
+    let even = |v: u32, sub: u32| if sub == 2 { v + v % 2 } else { v };
+    let size = (even(width, hs), even(height, vs));
+    (size != (width, height)).then_some(size)
+}
+
+/// `frame` with its luma plane grown to `width` x `height` by repeating its last column and
+/// row (see [`even_size`]); the chroma planes are kept as they are.
+pub fn pad_luma<T: crate::video::YuvSample>(
+    frame: &mut crate::video::YuvFrame<T>,
+    width: u32,
+    height: u32,
+) {
+    let (w, h) = frame.y.dimensions();
+    if (w, h) == (width, height) || w == 0 || h == 0 {
+        return;
+    }
+    let y = &frame.y;
+    let padded = crate::video::Plane::from_fn(width, height, |x, r| {
+        *y.get_pixel(x.min(w - 1), r.min(h - 1))
+    });
+    frame.y = padded;
+}
+
+/// A y4m header line with its `W` and `H` fields set to `width` and `height`.
+pub fn resize_header(header: &[u8], width: u32, height: u32) -> Vec<u8> {
+    let body = header.strip_suffix(b"\n").unwrap_or(header);
+    let fields: Vec<Vec<u8>> = body
+        .split(|&b| b == b' ')
+        .enumerate()
+        .map(|(i, f)| match f.first() {
+            Some(b'W') if i > 0 => format!("W{width}").into_bytes(),
+            Some(b'H') if i > 0 => format!("H{height}").into_bytes(),
+            _ => f.to_vec(),
+        })
+        .collect();
+    let mut out = fields.join(&b' ');
+    out.push(b'\n');
+    out
 }
 
 /// The video encoder used when `--codec` is not given: the source's own codec where this
@@ -1113,6 +1194,67 @@ mod tests {
         assert_eq!(d(Container::Other, Some("mpeg2video"), 8), None);
         assert_eq!(Container::of(Path::new("a/B.MP4")), Container::Mp4);
         assert_eq!(default_crf("libx264"), Some(18.0));
+    }
+
+    #[test]
+    fn lossless_sources_keep_their_codec() {
+        let mut c = caps(true);
+        c.encoders
+            .extend(["ffv1", "utvideo", "ffvhuff"].map(String::from));
+        let d = |src| default_codec(Container::Mkv, Some(src), 8, &c);
+        assert_eq!(d("ffv1").as_deref(), Some("ffv1"));
+        assert_eq!(d("utvideo").as_deref(), Some("utvideo"));
+        assert_eq!(d("ffvhuff").as_deref(), Some("ffvhuff"));
+        assert_eq!(
+            default_codec(Container::Mkv, Some("ffv1"), 10, &c).as_deref(),
+            Some("ffv1")
+        );
+        // MP4 cannot hold FFV1: the usual fallback.
+        assert_eq!(
+            default_codec(Container::Mp4, Some("ffv1"), 8, &c).as_deref(),
+            Some("libx264")
+        );
+        assert_eq!(default_crf("ffv1"), None);
+    }
+
+    #[test]
+    fn odd_sizes_are_padded_to_even_for_subsampling_encoders() {
+        use crate::video::{Chroma, Plane, VideoFormat, YuvFrame};
+        let e = |enc, w, h, c| even_size(enc, w, h, c);
+        assert_eq!(
+            e(Some("libx264"), 641, 361, Chroma::Yuv420),
+            Some((642, 362))
+        );
+        assert_eq!(
+            e(Some("libx264"), 641, 361, Chroma::Yuv422),
+            Some((642, 361))
+        );
+        assert_eq!(e(Some("libx264"), 641, 361, Chroma::Yuv444), None);
+        assert_eq!(e(Some("libx264"), 640, 360, Chroma::Yuv420), None);
+        assert_eq!(e(Some("ffv1"), 641, 361, Chroma::Yuv420), None);
+        assert_eq!(e(None, 641, 360, Chroma::Yuv420), Some((642, 360)));
+        let header = b"YUV4MPEG2 W641 H361 F25:1 Ip A1:1 C420jpeg XYSCSS=420JPEG\n";
+        assert_eq!(
+            resize_header(header, 642, 362),
+            b"YUV4MPEG2 W642 H362 F25:1 Ip A1:1 C420jpeg XYSCSS=420JPEG\n".to_vec()
+        );
+        let format = VideoFormat {
+            width: 3,
+            height: 3,
+            chroma: Chroma::Yuv420,
+            full_range: false,
+            frame_rate: (25, 1),
+            bit_depth: 10,
+        };
+        let mut f: YuvFrame<u16> = YuvFrame::blank(&format);
+        f.y = Plane::from_fn(3, 3, |x, y| image::Luma([(10 * y + x) as u16]));
+        pad_luma(&mut f, 4, 4);
+        assert_eq!(f.y.dimensions(), (4, 4));
+        assert_eq!(f.u.dimensions(), (2, 2));
+        let row = |r: u32| (0..4).map(|x| f.y.get_pixel(x, r)[0]).collect::<Vec<_>>();
+        assert_eq!(row(0), [0, 1, 2, 2]);
+        assert_eq!(row(2), [20, 21, 22, 22]);
+        assert_eq!(row(3), [20, 21, 22, 22]);
     }
 
     #[test]

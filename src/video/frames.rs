@@ -90,6 +90,41 @@ pub fn list_frames(dir: &Path) -> Result<Vec<PathBuf>> {
     Ok(frames)
 }
 
+/// A file name split around the last run of digits of its stem: (text before, number, text
+/// after); `None` without digits (or a number too long for `u64`).
+fn numbered(path: &Path) -> Option<(String, u64, String)> {
+    let name = path.file_name()?.to_string_lossy().into_owned();
+    let stem_len = path
+        .file_stem()
+        .map_or(name.len(), |s| s.to_string_lossy().len());
+    let stem = &name[..stem_len];
+    let end = stem.rfind(|c: char| c.is_ascii_digit())? + 1;
+    let start = stem[..end]
+        .rfind(|c: char| !c.is_ascii_digit())
+        .map_or(0, |i| i + 1);
+    let number = stem[start..end].parse().ok()?;
+    Some((name[..start].to_string(), number, name[end..].to_string()))
+}
+
+/// The gaps in the numbering of frame files in order (`000003.png` then `000007.png`): for
+/// each, the names on both sides and how many numbers are missing. Only neighbours whose names
+/// differ in their last number alone are compared.
+pub fn frame_gaps(paths: &[PathBuf]) -> Vec<(String, String, u64)> {
+    let name = |p: &Path| {
+        p.file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default()
+    };
+    paths
+        .windows(2)
+        .filter_map(|pair| {
+            let (a, b) = (numbered(&pair[0])?, numbered(&pair[1])?);
+            let same_pattern = a.0 == b.0 && a.2 == b.2;
+            (same_pattern && b.1 > a.1 + 1).then(|| (name(&pair[0]), name(&pair[1]), b.1 - a.1 - 1))
+        })
+        .collect()
+}
+
 /// Frames read from a list of image files.
 #[derive(Debug)]
 pub struct FrameFolderReader {
@@ -251,6 +286,28 @@ mod tests {
             v,
             ["f.png", "f1.png", "f02.png", "f2.png", "f10.png", "g.png"]
         );
+    }
+
+    #[test]
+    fn gaps_in_the_numbering() {
+        let paths = |names: &[&str]| names.iter().map(PathBuf::from).collect::<Vec<_>>();
+        assert_eq!(
+            frame_gaps(&paths(&[
+                "d/000001.png",
+                "d/000002.png",
+                "d/000003.png",
+                "d/000007.png",
+                "d/000008.png",
+                "d/000010.png"
+            ])),
+            [
+                ("000003.png".to_string(), "000007.png".to_string(), 3),
+                ("000008.png".to_string(), "000010.png".to_string(), 1)
+            ]
+        );
+        assert!(frame_gaps(&paths(&["f1.png", "f2.png", "f10.png", "g12.png"])).len() == 1);
+        assert!(frame_gaps(&paths(&["a.png", "b.png", "c9.png"])).is_empty());
+        assert!(frame_gaps(&paths(&["take2_0001.png", "take2_0002.png"])).is_empty());
     }
 
     #[test]

@@ -507,6 +507,8 @@ impl FrameSource for Decoder {
 pub struct Encoder {
     writer: Option<Y4mWriter<BufWriter<ChildStdin>>>,
     child: ChildProcess,
+    /// The size frames are padded to (see [`unshear::video::ffmpeg::even_size`]).
+    pad: Option<(u32, u32)>,
 }
 
 /// An encoding `ffmpeg` started and not yet written to (see [`Encoder`]).
@@ -526,13 +528,19 @@ impl PendingEncoder {
         Ok(Self { child, stdin })
     }
 
-    /// Writes the y4m `header` into it.
-    pub fn begin(self, header: &[u8]) -> Result<Encoder> {
+    /// Writes the y4m `header` into it; with `pad`, the header says that size and every frame
+    /// is padded to it by repeating its last luma column and row.
+    pub fn begin(self, header: &[u8], pad: Option<(u32, u32)>) -> Result<Encoder> {
         let mut encoder = Encoder {
             writer: None,
             child: self.child,
+            pad,
         };
-        match Y4mWriter::with_header(BufWriter::with_capacity(1 << 20, self.stdin), header) {
+        let header = match pad {
+            Some((w, h)) => unshear::video::ffmpeg::resize_header(header, w, h),
+            None => header.to_vec(),
+        };
+        match Y4mWriter::with_header(BufWriter::with_capacity(1 << 20, self.stdin), &header) {
             Ok(w) => encoder.writer = Some(w),
             Err(e) => return Err(encoder.failure(e).into()),
         }
@@ -556,13 +564,30 @@ impl FrameSink for Encoder {
         let Some(w) = self.writer.as_mut() else {
             return Err(unshear::Error::Video("the encoder is closed".into()));
         };
-        let result = match &frame {
+        use unshear::video::ffmpeg::pad_luma;
+        let (pw, ph) = self.pad.unwrap_or((0, 0));
+        let padded = self.pad.is_some();
+        let result = match frame {
             VideoFrame::Image(i) => {
                 let f = w.format();
-                let yuv = unshear::video::color::image_to_yuv(i, f.chroma, f.full_range);
+                let mut yuv = unshear::video::color::image_to_yuv(&i, f.chroma, f.full_range);
+                if padded {
+                    pad_luma(&mut yuv, pw, ph);
+                }
                 w.write_frame(&yuv)
             }
-            yuv => w.write_video_frame(yuv),
+            VideoFrame::Yuv(mut f) => {
+                if padded {
+                    pad_luma(&mut f, pw, ph);
+                }
+                w.write_frame(&f)
+            }
+            VideoFrame::Yuv16(mut f) => {
+                if padded {
+                    pad_luma(&mut f, pw, ph);
+                }
+                w.write_frame16(&f)
+            }
         };
         result.map_err(|e| self.failure(e))
     }

@@ -28,9 +28,10 @@ use crate::report::{face, r4, JsonFace};
 use crate::{interrupt, usage_error};
 use unshear::imageio::WriteOptions;
 use unshear::video::ffmpeg::{
-    decode_args, y4m_target, Capabilities, EncodePlan, EncodeSettings, Probe, StreamAction, Timing,
+    decode_args, even_size, y4m_target, Capabilities, EncodePlan, EncodeSettings, Probe,
+    StreamAction, Timing,
 };
-use unshear::video::frames::{list_frames, FrameFolderReader, FrameFolderWriter};
+use unshear::video::frames::{frame_gaps, list_frames, FrameFolderReader, FrameFolderWriter};
 use unshear::video::temporal::FilterParams;
 use unshear::video::tracker::TrackerParams;
 use unshear::video::y4m::{Y4mReader, Y4mWriter};
@@ -237,6 +238,7 @@ fn open_input(a: &VideoArgs, decoder: Option<(Probe, PendingDecoder)>) -> Result
     }
     if a.input.is_dir() {
         let paths = list_frames(&a.input)?;
+        warn_gaps(&a.input, &paths);
         let reader = FrameFolderReader::new(paths, max)
             .with_context(|| format!("reading the first frame in {}", a.input.display()))?;
         let (width, height) = reader.dimensions();
@@ -318,6 +320,15 @@ pub fn video(a: VideoArgs) -> Result<()> {
             "--smoothing-lag must be at most {MAX_SMOOTHING_LAG} frames (frames are held in memory)"
         ));
     }
+    if let (Some(json), Some(out)) = (a.json.as_deref(), a.output.as_deref()) {
+        if !is_stdio(json) && !is_stdio(out) && same_target(json, out) {
+            usage_error(&format!(
+                "--json={} and -o {} name the same file; give the JSON another name",
+                json.display(),
+                out.display()
+            ));
+        }
+    }
     let output = match a.output.as_deref() {
         None => Output::None,
         Some(o) if is_stdio(o) => Output::Stdout,
@@ -393,6 +404,8 @@ pub fn video(a: VideoArgs) -> Result<()> {
         ..Default::default()
     };
 
+    // Every refusal before anything is created (the JSON file included).
+    check_output(&output, &protected, a.force, &a.frame_format)?;
     // Per-frame JSON and progress, on the processing thread.
     let mut json_out: Option<Box<dyn Write>> = match a.json.as_deref() {
         None => None,
@@ -404,6 +417,7 @@ pub fn video(a: VideoArgs) -> Result<()> {
             if p.exists() && !a.force {
                 anyhow::bail!("{}: exists; use --force to replace it", p.display());
             }
+            create_parent(p)?;
             Some(Box::new(BufWriter::new(
                 File::create(p).with_context(|| format!("creating {}", p.display()))?,
             )))
@@ -440,6 +454,7 @@ pub fn video(a: VideoArgs) -> Result<()> {
             )?
         }
         Output::Y4mFile(o) => {
+            create_parent(o)?;
             let mut stats = None;
             unshear::imageio::write_atomic(o, &write_options, |w| {
                 let mut sink = y4m_sink(w, header.as_deref(), &format)?;
@@ -451,7 +466,7 @@ pub fn video(a: VideoArgs) -> Result<()> {
                 )?);
                 Ok(())
             })
-            .with_context(|| format!("writing {}", o.display()))?;
+            .map_err(|e| anyhow::anyhow!("writing {}: {}", o.display(), flat_error(&e)))?;
             stats.context("no run statistics")?
         }
         Output::Folder(dir) => {
@@ -572,6 +587,7 @@ impl EncodeJob {
             Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
             _ => PathBuf::from("."),
         };
+        create_parent(out)?;
         let ext = out
             .extension()
             .and_then(|e| e.to_str())
@@ -619,7 +635,38 @@ impl EncodeJob {
             Some(h) => h.to_vec(),
             None => Y4mWriter::new(Vec::new(), format)?.finish()?,
         };
-        let mut encoder = encoder.begin(&header)?;
+        let pad = even_size(
+            plan.codec.as_deref(),
+            format.width,
+            format.height,
+            format.chroma,
+        );
+        if let Some((w, h)) = pad {
+            let encoder_name = plan.codec.as_deref().unwrap_or("ffmpeg's default encoder");
+            eprintln!(
+                "unshear video: warning: {encoder_name} cannot encode {}x{} {} frames (its \
+                 subsampled chroma needs an even width{}); {} is padded to {w}x{h} by repeating \
+                 the last {}; --codec ffv1 (lossless) or libvpx-vp9 keeps the size",
+                format.width,
+                format.height,
+                chroma_name(format.chroma),
+                if matches!(
+                    format.chroma,
+                    unshear::video::Chroma::Yuv420 | unshear::video::Chroma::Yuv420CoSited
+                ) {
+                    " and height"
+                } else {
+                    ""
+                },
+                out.display(),
+                match (w != format.width, h != format.height) {
+                    (true, true) => "column and row",
+                    (true, false) => "column",
+                    _ => "row",
+                }
+            );
+        }
+        let mut encoder = encoder.begin(&header, pad)?;
         let stats = process(&mut encoder).with_context(|| format!("writing {}", out.display()))?;
         drop(encoder);
         let finished = match plan.remux_rotation {
@@ -707,6 +754,106 @@ fn frame_rate_fraction(fps: f64) -> (u32, u32) {
         (fps as u32, 1)
     } else {
         ((fps * 1000.0).round().min(f64::from(u32::MAX)) as u32, 1000)
+    }
+}
+
+/// Whether `a` and `b` name the same file, existing or not (a missing file is compared by its
+/// canonical folder and its name).
+fn same_target(a: &Path, b: &Path) -> bool {
+    if same_path(a, b) {
+        return true;
+    }
+    let resolved = |p: &Path| -> Option<PathBuf> {
+        let name = p.file_name()?;
+        let dir = match p.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        match dir.canonicalize() {
+            Ok(d) => Some(d.join(name)),
+            Err(_) => std::path::absolute(p).ok(),
+        }
+    };
+    match (resolved(a), resolved(b)) {
+        (Some(x), Some(y)) => x == y,
+        _ => false,
+    }
+}
+
+/// Refuses an output that is an input or exists without `--force`, before anything is
+/// written (a frame folder: by its first frame).
+fn check_output(output: &Output, protected: &[PathBuf], force: bool, ext: &str) -> Result<()> {
+    let file = match output {
+        Output::Y4mFile(o) | Output::Container(o) => o.clone(),
+        Output::Folder(dir) => dir.join(format!("000000.{ext}")),
+        Output::None | Output::Stdout => return Ok(()),
+    };
+    if protected.iter().any(|p| same_path(p, &file)) {
+        bail!("refusing to write {}: it is an input file", file.display());
+    }
+    if file.exists() && !force {
+        bail!(
+            "refusing to write {}: it exists; use --force to replace it",
+            file.display()
+        );
+    }
+    Ok(())
+}
+
+/// Creates the missing folders above the file `path`.
+fn create_parent(path: &Path) -> Result<()> {
+    match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() && !d.is_dir() => std::fs::create_dir_all(d)
+            .with_context(|| format!("creating the folder {} for {}", d.display(), path.display())),
+        _ => Ok(()),
+    }
+}
+
+/// A library error as one line: its own text, without the causes it already contains, and
+/// without a temporary file's name.
+fn flat_error(e: &unshear::Error) -> String {
+    match e {
+        unshear::Error::Io { source, .. } => {
+            let text = source.to_string();
+            // tempfile appends the temporary file's path, which means nothing to the user.
+            text.split(" at path ").next().unwrap_or(&text).to_string()
+        }
+        other => other.to_string(),
+    }
+}
+
+/// The name of a chroma layout for messages.
+fn chroma_name(c: unshear::video::Chroma) -> &'static str {
+    use unshear::video::Chroma;
+    match c {
+        Chroma::Mono => "grey",
+        Chroma::Yuv420 | Chroma::Yuv420CoSited => "4:2:0",
+        Chroma::Yuv422 => "4:2:2",
+        Chroma::Yuv444 => "4:4:4",
+    }
+}
+
+/// Warns about each gap in the numbering of a frame folder's files (`000003.png` then
+/// `000007.png`): the frames are taken as consecutive all the same.
+fn warn_gaps(dir: &Path, paths: &[PathBuf]) {
+    const SHOWN: usize = 5;
+    let gaps = frame_gaps(paths);
+    for (before, after, missing) in gaps.iter().take(SHOWN) {
+        eprintln!(
+            "unshear video: warning: {}: the numbering skips from {} to {} ({missing} frame{} \
+             missing); the frames are taken as consecutive",
+            dir.display(),
+            before,
+            after,
+            if *missing == 1 { "" } else { "s" }
+        );
+    }
+    if gaps.len() > SHOWN {
+        eprintln!(
+            "unshear video: warning: {}: {} more gaps in the numbering",
+            dir.display(),
+            gaps.len() - SHOWN
+        );
     }
 }
 
