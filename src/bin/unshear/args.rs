@@ -75,10 +75,11 @@ pub struct ModelArgs {
     )]
     pub network: Option<PathBuf>,
     /// Refuse images with more pixels than this (checked before decoding).
-    #[arg(help_heading = "Input and output", hide_short_help = true, long, value_name = "N", default_value_t = unshear::imageio::DEFAULT_MAX_PIXELS)]
+    #[arg(allow_negative_numbers = true, help_heading = "Input and output", hide_short_help = true, long, value_name = "N", default_value_t = unshear::imageio::DEFAULT_MAX_PIXELS)]
     pub max_pixels: u64,
     /// Refinement passes: locate the features again in the face de-sheared by the last estimate.
     #[arg(
+        allow_negative_numbers = true,
         help_heading = "Correction",
         hide_short_help = true,
         long,
@@ -99,11 +100,11 @@ pub struct ModelArgs {
     pub shear_model: Option<ShearModelArg>,
     /// Refuse a face's estimate (report `"k": null`, do not correct by it) below this
     /// confidence (0 to 1).
-    #[arg(help_heading = "Correction", long, value_name = "C", default_value_t = unshear::config::DEFAULT_MIN_CONFIDENCE)]
+    #[arg(allow_negative_numbers = true, help_heading = "Correction", long, value_name = "C", default_value_t = unshear::config::DEFAULT_MIN_CONFIDENCE)]
     pub min_confidence: f64,
     /// Refuse a face's estimate whose |k| is beyond this (report `"k": null`, `"refused":
     /// "implausible_shear"`): rolling-shutter shears of usable photos stay well below it.
-    #[arg(help_heading = "Correction", hide_short_help = true, long, value_name = "K", default_value_t = unshear::config::DEFAULT_MAX_SHEAR)]
+    #[arg(allow_negative_numbers = true, help_heading = "Correction", hide_short_help = true, long, value_name = "K", default_value_t = unshear::config::DEFAULT_MAX_SHEAR)]
     pub max_shear: f64,
     /// Detect in the image as it is only (the paper's single pass): no de-sheared or turned
     /// retries when no face is found.
@@ -170,7 +171,7 @@ pub struct ModelArgs {
     /// Each crop is re-centred on the eyes found in the one before with their shear and roll removed (at least 1): fewer is faster, about
     /// one forward pass each, and less accurate (docs/performance.md) [default: 8
     /// for stills, stopping earlier when the estimate settles; 2 for `video`].
-    #[arg(help_heading = "Correction", long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..=64))]
+    #[arg(allow_negative_numbers = true, help_heading = "Correction", long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..=64))]
     pub max_crops: Option<u16>,
     /// With --quick: search every de-sheared and turned view of every image anyway, not only
     /// when the views before gave no trusted face (the thorough search always does).
@@ -194,12 +195,18 @@ pub struct ModelArgs {
     /// detector; for viola-jones the cascade's window, 20 px, as OpenCV; `eval shear`: 1.5
     /// times --min-eye-distance]. Larger is faster: most of the detector's time goes to the
     /// smallest faces, and faces under about 60 px are too small to measure the shear well.
-    #[arg(help_heading = "Face search", long, value_name = "PX")]
+    #[arg(
+        allow_negative_numbers = true,
+        help_heading = "Face search",
+        long,
+        value_name = "PX"
+    )]
     pub min_face: Option<u32>,
     /// The detector's minimum of merged raw hits for a face (OpenCV's `minNeighbors`): lower
     /// finds more faces and more false ones [default: 3, as OpenCV; the thorough search with
     /// the network asks for at most 1, as the network's face score rejects false boxes].
     #[arg(
+        allow_negative_numbers = true,
         help_heading = "Face search",
         hide_short_help = true,
         long,
@@ -209,6 +216,7 @@ pub struct ModelArgs {
     /// The detector's scale step (OpenCV's `scaleFactor`, above 1): smaller finds more faces
     /// and takes longer [default: 1.1, as OpenCV].
     #[arg(
+        allow_negative_numbers = true,
         help_heading = "Face search",
         hide_short_help = true,
         long,
@@ -216,7 +224,7 @@ pub struct ModelArgs {
     )]
     pub scale_factor: Option<f64>,
     /// Worker threads [default: one per core].
-    #[arg(help_heading = "Input and output", long, short = 'j', value_name = "N",
+    #[arg(allow_negative_numbers = true, help_heading = "Input and output", long, short = 'j', value_name = "N",
           value_parser = clap::value_parser!(u16).range(1..))]
     pub jobs: Option<u16>,
 }
@@ -385,7 +393,7 @@ pub struct DistortArgs {
     #[arg(long)]
     pub force: bool,
     /// Refuse images with more pixels than this.
-    #[arg(long, value_name = "N", default_value_t = unshear::imageio::DEFAULT_MAX_PIXELS)]
+    #[arg(allow_negative_numbers = true, long, value_name = "N", default_value_t = unshear::imageio::DEFAULT_MAX_PIXELS)]
     pub max_pixels: u64,
 }
 
@@ -403,7 +411,7 @@ pub struct TrainArgs {
     #[arg(long, value_enum, value_name = "WHICH", default_value = "unmeasured")]
     pub faces: TrainFacesArg,
     /// Skip faces whose eye distance is below this many pixels.
-    #[arg(long, value_name = "PX", default_value_t = unshear::dev::train::MIN_EYE_DISTANCE)]
+    #[arg(allow_negative_numbers = true, long, value_name = "PX", default_value_t = unshear::dev::train::MIN_EYE_DISTANCE)]
     pub min_eye_distance: f64,
     /// Train on the faces as they are only, not also on their mirror images (the default adds
     /// them, as the built-in filters were trained).
@@ -454,13 +462,18 @@ pub struct EvalShearArgs {
           default_values_t = [0.0, -0.14, 0.14, -0.20, 0.20, -0.33, 0.33, -0.40, 0.40])]
     pub k: Vec<f64>,
     /// Only faces whose eye distance is at least this many pixels.
-    #[arg(long, value_name = "PX", default_value_t = 40.0)]
+    #[arg(
+        allow_negative_numbers = true,
+        long,
+        value_name = "PX",
+        default_value_t = 40.0
+    )]
     pub min_eye_distance: f64,
     /// Which annotated faces to measure.
     #[arg(long, value_enum, value_name = "WHICH", default_value_t = EvalFaces::Measured)]
     pub faces: EvalFaces,
     /// Use at most this many faces (the first, in data-set order).
-    #[arg(long, value_name = "N")]
+    #[arg(allow_negative_numbers = true, long, value_name = "N")]
     pub limit: Option<usize>,
     /// Also write every sample as CSV here.
     #[arg(long, value_name = "FILE")]
@@ -471,7 +484,7 @@ pub struct EvalShearArgs {
     pub out: Option<PathBuf>,
     /// Crop each image to this many nominal face boxes around its annotated faces before
     /// shearing (speed; 0: shear the whole image).
-    #[arg(long, value_name = "F", default_value_t = unshear::dev::eval::shear::DEFAULT_CONTEXT)]
+    #[arg(allow_negative_numbers = true, long, value_name = "F", default_value_t = unshear::dev::eval::shear::DEFAULT_CONTEXT)]
     pub context: f64,
     /// Also run each whole photo once with its annotated faces painted over, and count the
     /// photos where a face is still reported and accepted (false faces, or faces the
@@ -511,7 +524,12 @@ pub struct EvalNostrilsArgs {
     )]
     pub xml: Vec<PathBuf>,
     /// Enlarge each image by this factor before detection (the example faces are tiny).
-    #[arg(long, value_name = "F", default_value_t = 1.0)]
+    #[arg(
+        allow_negative_numbers = true,
+        long,
+        value_name = "F",
+        default_value_t = 1.0
+    )]
     pub upscale: f64,
     #[command(flatten)]
     pub model: ModelArgs,
@@ -528,10 +546,20 @@ pub struct EvalRecognitionArgs {
           default_values_t = [0.14, 0.20, 0.33, 0.40])]
     pub k: Vec<f64>,
     /// Gallery images per identity (the first by file name); the rest are probes.
-    #[arg(long, value_name = "N", default_value_t = 3)]
+    #[arg(
+        allow_negative_numbers = true,
+        long,
+        value_name = "N",
+        default_value_t = 3
+    )]
     pub gallery: usize,
     /// Pool the Gabor magnitudes on a GRID x GRID grid (2: 96 features, the paper's G96).
-    #[arg(long, value_name = "GRID", default_value_t = 2)]
+    #[arg(
+        allow_negative_numbers = true,
+        long,
+        value_name = "GRID",
+        default_value_t = 2
+    )]
     pub grid: usize,
     #[command(flatten)]
     pub model: ModelArgs,
@@ -561,7 +589,7 @@ pub struct VideoArgs {
     pub codec: Option<String>,
     /// Constant quality of a video-file output (lower is better) [default: 18 for libx264, 20
     /// for libx265, 30 for VP9 and AV1].
-    #[arg(long, value_name = "N")]
+    #[arg(allow_negative_numbers = true, long, value_name = "N")]
     pub crf: Option<f64>,
     /// Speed preset of the video encoder, passed to ffmpeg as -preset (libx264 and libx265:
     /// ultrafast ... veryslow; libsvtav1: 0-13) [default: the encoder's, medium for x264 and
@@ -590,29 +618,54 @@ pub struct VideoArgs {
     /// Full face detection every N frames (faces are tracked in between) [default: 5 with
     /// the network detector, so that a face entering the frame is found within 5 frames; 30
     /// with viola-jones].
-    #[arg(long, value_name = "N")]
+    #[arg(allow_negative_numbers = true, long, value_name = "N")]
     pub redetect: Option<u64>,
     /// While no face is tracked, full detection every N frames.
-    #[arg(long, value_name = "N", default_value_t = 5)]
+    #[arg(
+        allow_negative_numbers = true,
+        long,
+        value_name = "N",
+        default_value_t = 5
+    )]
     pub lost_interval: u64,
     /// Full detection on the frame shrunk to at most this width (0: full size; smallest face
     /// found: about 24 * width / PX pixels with the network detector, 20 * width / PX with
     /// viola-jones).
-    #[arg(long, value_name = "PX", default_value_t = 640)]
+    #[arg(
+        allow_negative_numbers = true,
+        long,
+        value_name = "PX",
+        default_value_t = 640
+    )]
     pub detect_width: u32,
     /// Smooth k over this many later frames (a fixed-lag smoother): each frame is corrected
     /// once N more frames have been estimated, so output lags input by N frames (0: the causal
     /// filter, no delay).
-    #[arg(long, value_name = "N", default_value_t = unshear::video::temporal::DEFAULT_SMOOTHING_LAG)]
+    #[arg(allow_negative_numbers = true, long, value_name = "N", default_value_t = unshear::video::temporal::DEFAULT_SMOOTHING_LAG)]
     pub smoothing_lag: usize,
     /// Without a face, hold the filtered k for this many seconds...
-    #[arg(long, value_name = "SECONDS", default_value_t = 0.5)]
+    #[arg(
+        allow_negative_numbers = true,
+        long,
+        value_name = "SECONDS",
+        default_value_t = 0.5
+    )]
     pub hold: f64,
     /// ...then let it decay to 0 with this time constant.
-    #[arg(long, value_name = "SECONDS", default_value_t = 1.0)]
+    #[arg(
+        allow_negative_numbers = true,
+        long,
+        value_name = "SECONDS",
+        default_value_t = 1.0
+    )]
     pub decay: f64,
     /// Frame rate of a frame folder (y4m streams carry their own).
-    #[arg(long, value_name = "FPS", default_value_t = 25.0)]
+    #[arg(
+        allow_negative_numbers = true,
+        long,
+        value_name = "FPS",
+        default_value_t = 25.0
+    )]
     pub fps: f64,
     /// Chroma layout of y4m output made from a frame folder.
     #[arg(long, value_enum, default_value_t = ChromaArg::C420)]

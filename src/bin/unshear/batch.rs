@@ -2,7 +2,7 @@
 //! the results back in input order (so output is reproducible), with a progress bar on stderr
 //! when stderr is a terminal.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashSet};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -33,24 +33,48 @@ pub struct Input {
 /// Links to files inside folders are followed; links to folders only with `follow_links`
 /// (`-L`), where a link loop is reported as the error of the link that closes it. Files whose
 /// stem ends in `.unshear` (this tool's own outputs) are skipped in folders, so running twice
-/// over a folder does not correct the corrections.
+/// over a folder does not correct the corrections; so is the folder `exclude` (the output
+/// folder, compared by canonical path) wherever it lies below a folder walked.
+///
+/// A file reached twice (named twice, or named and also found in a folder given), compared by
+/// canonical path, is an input only the first time.
 pub fn collect_inputs(
     paths: &[PathBuf],
     follow_links: bool,
+    exclude: Option<&Path>,
 ) -> Vec<Result<Input, (PathBuf, String)>> {
+    let exclude = exclude.and_then(|d| d.canonicalize().ok());
+    let mut seen = HashSet::new();
+    // True the first time a file is met (files that cannot be resolved are always new: they
+    // fail on their own when read).
+    let mut first_time = |path: &Path| match path.canonicalize() {
+        Ok(c) => seen.insert(c),
+        Err(_) => true,
+    };
     let mut out = Vec::new();
     for p in paths {
         if !p.is_dir() {
-            out.push(Ok(Input {
-                path: p.clone(),
-                root: None,
-            }));
+            if first_time(p) {
+                out.push(Ok(Input {
+                    path: p.clone(),
+                    root: None,
+                }));
+            }
             continue;
         }
         let before = out.len();
+        let mut found_image = false;
         let walk = walkdir::WalkDir::new(p)
             .follow_links(follow_links)
-            .sort_by_file_name();
+            .sort_by_file_name()
+            .into_iter()
+            .filter_entry(|e| {
+                e.depth() == 0
+                    || !e.file_type().is_dir()
+                    || exclude
+                        .as_deref()
+                        .is_none_or(|x| e.path().canonicalize().ok().as_deref() != Some(x))
+            });
         for entry in walk {
             match entry {
                 Ok(e) => {
@@ -60,10 +84,13 @@ pub fn collect_inputs(
                         || (e.path_is_symlink()
                             && std::fs::metadata(e.path()).is_ok_and(|m| m.is_file()));
                     if is_file && is_image_name(e.path()) {
-                        out.push(Ok(Input {
-                            path: e.path().to_path_buf(),
-                            root: Some(p.clone()),
-                        }));
+                        found_image = true;
+                        if first_time(e.path()) {
+                            out.push(Ok(Input {
+                                path: e.path().to_path_buf(),
+                                root: Some(p.clone()),
+                            }));
+                        }
                     }
                 }
                 Err(err) => {
@@ -72,7 +99,7 @@ pub fn collect_inputs(
                 }
             }
         }
-        if out.len() == before {
+        if out.len() == before && !found_image {
             let hint = if follow_links {
                 ""
             } else {
@@ -196,7 +223,7 @@ mod tests {
         }
         std::fs::create_dir(dir.path().join("sub")).expect("mkdir");
         std::fs::write(dir.path().join("sub/c.webp"), b"x").expect("write");
-        let found: Vec<String> = collect_inputs(&[dir.path().to_path_buf()], false)
+        let found: Vec<String> = collect_inputs(&[dir.path().to_path_buf()], false, None)
             .into_iter()
             .filter_map(Result::ok)
             .map(|i| {
@@ -253,7 +280,7 @@ mod tests {
     #[cfg(unix)]
     fn walk(root: &Path, follow: bool) -> (Vec<String>, Vec<String>) {
         let (mut found, mut failed) = (Vec::new(), Vec::new());
-        for r in collect_inputs(&[root.to_path_buf()], follow) {
+        for r in collect_inputs(&[root.to_path_buf()], follow, None) {
             match r {
                 Ok(i) => found.push(
                     i.path

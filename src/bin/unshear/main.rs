@@ -12,6 +12,7 @@ mod models;
 mod report;
 mod video;
 
+use std::collections::hash_map::{Entry, HashMap};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -187,9 +188,8 @@ fn error_chain(e: &anyhow::Error) -> String {
     message
 }
 
-/// The inputs named, or with `--shard` this process's slice of them.
-fn inputs_of(paths: &[PathBuf], follow: bool, shard_arg: Option<args::ShardArg>) -> Vec<Collected> {
-    let inputs = collect_inputs(paths, follow);
+/// The inputs collected, or with `--shard` this process's slice of them.
+fn shard_of(inputs: Vec<Collected>, shard_arg: Option<args::ShardArg>) -> Vec<Collected> {
     let Some(spec) = shard_arg else {
         return inputs;
     };
@@ -199,9 +199,21 @@ fn inputs_of(paths: &[PathBuf], follow: bool, shard_arg: Option<args::ShardArg>)
     }
 }
 
+/// Refuses `-` as an input of `estimate` and `correct` (a usage error): standard input is read by
+/// `video` only, and a still named `-` would otherwise fail as a missing file.
+fn refuse_stdin(inputs: &[PathBuf]) {
+    if inputs.iter().any(|p| p.as_os_str() == "-") {
+        usage_error(
+            "'-' (standard input) is supported for video only: give image files or folders \
+             (a file named '-' as ./-)",
+        );
+    }
+}
+
 fn estimate(a: EstimateArgs) -> Result<bool> {
+    refuse_stdin(&a.inputs);
     let unshear = load_models(&a.model, Config::default())?;
-    let inputs = inputs_of(&a.inputs, a.follow, a.shard);
+    let inputs = shard_of(collect_inputs(&a.inputs, a.follow, None), a.shard);
     let mut all_ok = true;
     let done = run_ordered(
         &inputs,
@@ -241,12 +253,20 @@ fn report_interruption(done: usize, total: usize) {
     }
 }
 
-/// Where the corrected image of `input` goes.
+/// Where the corrected image of `input` goes. The name is built from the input's name as an
+/// `OsStr`, so names that are not UTF-8 keep their bytes. An input that is not a regular file
+/// (a device, a pipe, `/dev/stdin`) has no folder to write beside: it needs `-o` or `--out-dir`.
 fn output_path(a: &CorrectArgs, input: &Input) -> Result<PathBuf> {
     if let Some(o) = &a.output {
         return Ok(o.clone());
     }
     let name = input.path.file_name().context("input has no file name")?;
+    if a.out_dir.is_none() && std::fs::metadata(&input.path).is_ok_and(|m| !m.is_file()) {
+        bail!(
+            "not a regular file (a device, a pipe or /dev/stdin): give -o OUT (or --out-dir DIR) \
+             to say where the corrected image goes"
+        );
+    }
     if let Some(dir) = &a.out_dir {
         let relative = input
             .root
@@ -256,12 +276,84 @@ fn output_path(a: &CorrectArgs, input: &Input) -> Result<PathBuf> {
             .unwrap_or_else(|| PathBuf::from(name));
         return Ok(dir.join(relative));
     }
-    let stem = input.path.file_stem().unwrap_or(name).to_string_lossy();
-    let file = match input.path.extension() {
-        Some(ext) => format!("{stem}.unshear.{}", ext.to_string_lossy()),
-        None => format!("{stem}.unshear.png"),
-    };
+    let mut file = input.path.file_stem().unwrap_or(name).to_os_string();
+    file.push(".unshear.");
+    file.push(input.path.extension().unwrap_or("png".as_ref()));
     Ok(input.path.with_file_name(file))
+}
+
+/// `path` made absolute, its longest existing ancestor canonicalised (links and `..` resolved
+/// by the file system) and the rest cleaned lexically: two spellings of one output give the
+/// same result.
+fn normalise(path: &Path) -> PathBuf {
+    let absolute = std::env::current_dir()
+        .map(|d| d.join(path))
+        .unwrap_or_else(|_| path.to_path_buf());
+    let mut existing = absolute.as_path();
+    let mut rest = Vec::new();
+    let mut clean = loop {
+        if let Ok(c) = existing.canonicalize() {
+            break c;
+        }
+        match (existing.parent(), existing.components().next_back()) {
+            (Some(parent), Some(last)) => {
+                rest.push(last);
+                existing = parent;
+            }
+            _ => break PathBuf::new(),
+        }
+    };
+    for c in rest.into_iter().rev() {
+        match c {
+            std::path::Component::CurDir => {}
+            std::path::Component::ParentDir => {
+                clean.pop();
+            }
+            c => clean.push(c),
+        }
+    }
+    clean
+}
+
+/// Decides every input's output before any work, in input order (the command line's, then each
+/// folder's walk): an input whose output another input earlier in that order already takes
+/// fails with an error naming both, and so does an input whose output cannot be decided. An
+/// output that is also the `--annotate` picture is a usage error.
+fn refuse_colliding_outputs(a: &CorrectArgs, inputs: Vec<Collected>) -> Vec<Collected> {
+    let annotate = a.annotate.as_deref().map(normalise);
+    let mut taken: HashMap<PathBuf, PathBuf> = HashMap::new();
+    inputs
+        .into_iter()
+        .map(|collected| {
+            let input = collected?;
+            let out = match output_path(a, &input) {
+                Ok(out) => out,
+                Err(e) => return Err((input.path, error_chain(&e))),
+            };
+            let key = normalise(&out);
+            if annotate.as_ref() == Some(&key) {
+                usage_error(&format!(
+                    "--annotate and the corrected image are both {}",
+                    out.display()
+                ));
+            }
+            match taken.entry(key) {
+                Entry::Occupied(first) => Err((
+                    input.path,
+                    format!(
+                        "its output {} is also the output of {}, given earlier: nothing written \
+                         for this input (write it elsewhere with -o or another --out-dir)",
+                        out.display(),
+                        first.get().display()
+                    ),
+                )),
+                Entry::Vacant(slot) => {
+                    slot.insert(input.path.clone());
+                    Ok(input)
+                }
+            }
+        })
+        .collect()
 }
 
 /// What happened to one input of `correct`.
@@ -317,10 +409,7 @@ fn correct_one(
     let fixed = unshear.correct(&img, &report, &options)?;
     // The input is not needed any more: free it before encoding (peak memory, see README).
     drop(img);
-    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
-        std::fs::create_dir_all(parent)
-            .with_context(|| format!("creating {}", parent.display()))?;
-    }
+    create_parent(&out)?;
     write_atomic(
         &fixed,
         &out,
@@ -333,9 +422,16 @@ fn correct_one(
     Ok(Corrected::Written(report, out))
 }
 
-/// Creates the folder an output goes into, if it does not exist.
+/// Creates the folder an output goes into, if it does not exist; a file in the way is named as
+/// not a folder.
 fn create_parent(path: &Path) -> Result<()> {
     if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+        if let Some(file) = parent
+            .ancestors()
+            .find(|p| !p.as_os_str().is_empty() && p.exists() && !p.is_dir())
+        {
+            bail!("{} is not a folder", file.display());
+        }
         std::fs::create_dir_all(parent)
             .with_context(|| format!("creating {}", parent.display()))?;
     }
@@ -343,7 +439,25 @@ fn create_parent(path: &Path) -> Result<()> {
 }
 
 fn correct(a: CorrectArgs) -> Result<bool> {
-    let inputs = inputs_of(&a.inputs, a.follow, a.shard);
+    refuse_stdin(&a.inputs);
+    if let Some(dir) = &a.out_dir {
+        if dir.exists() && !dir.is_dir() {
+            usage_error(&format!(
+                "--out-dir {}: not a folder (a file of that name exists)",
+                dir.display()
+            ));
+        }
+    }
+    // The output folder is left out of the walk: outputs of an earlier run are not inputs.
+    let inputs = collect_inputs(&a.inputs, a.follow, a.out_dir.as_deref());
+    // Every input is protected from being written over, whatever the output naming does (also
+    // those refused below, and those of the other shards).
+    let protected: Vec<PathBuf> = inputs
+        .iter()
+        .filter_map(|i| i.as_ref().ok().map(|i| i.path.clone()))
+        .collect();
+    // Before sharding, so that every shard decides collisions alike.
+    let inputs = shard_of(refuse_colliding_outputs(&a, inputs), a.shard);
     if inputs.len() > 1 && a.output.is_some() {
         usage_error("-o/--output takes one input; use --out-dir for several");
     }
@@ -356,11 +470,6 @@ fn correct(a: CorrectArgs) -> Result<bool> {
         }
     }
     let unshear = load_models(&a.model, Config::default())?;
-    // Every input is protected from being written over, whatever the output naming does.
-    let protected: Vec<PathBuf> = inputs
-        .iter()
-        .filter_map(|i| i.as_ref().ok().map(|i| i.path.clone()))
-        .collect();
     let mut all_ok = true;
     let done = run_ordered(
         &inputs,
@@ -391,7 +500,14 @@ fn correct(a: CorrectArgs) -> Result<bool> {
                         print_line(&JsonLine::ok(&file, &report).to_line());
                     }
                     let why = no_shear_reason(&report);
-                    bar.suspend(|| eprintln!("unshear: {file}: {why}; nothing written, the input is left as it is (give --k to correct anyway)"));
+                    let written = match &a.annotate {
+                        Some(p) => format!(
+                            "no corrected image written (only the annotation, {})",
+                            p.display()
+                        ),
+                        None => "nothing written".to_string(),
+                    };
+                    bar.suspend(|| eprintln!("unshear: {file}: {why}; {written}, the input is left as it is (give --k to correct anyway)"));
                 }
                 Err(e) => {
                     all_ok = false;

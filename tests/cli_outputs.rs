@@ -1,0 +1,286 @@
+//! Where `correct` writes: the output folder is not read back, outputs that collide are refused,
+//! names that are not UTF-8 keep their bytes, inputs that are not files need `-o`; and the
+//! messages and usage errors around them.
+
+mod common;
+
+use common::{fixture, json_lines};
+
+use std::path::Path;
+
+use assert_cmd::Command;
+
+fn unshear() -> Command {
+    Command::cargo_bin("unshear").expect("binary built")
+}
+
+fn copy(from: &str, to: &Path) {
+    if let Some(parent) = to.parent() {
+        std::fs::create_dir_all(parent).expect("mkdir");
+    }
+    std::fs::copy(fixture(from), to).expect("copy");
+}
+
+fn stderr_of(out: &std::process::Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// An `--out-dir` inside the folder corrected is not walked: a second run refreshes the
+/// outputs instead of correcting the corrections into `fixed/fixed/`.
+#[test]
+fn out_dir_inside_an_input_folder_is_not_read_back() {
+    let dir = tempfile::tempdir().expect("temp");
+    let shoot = dir.path().join("shoot");
+    copy("subject01.normal.jpeg", &shoot.join("a.jpeg"));
+    let fixed = shoot.join("fixed");
+    for force in [false, true] {
+        let mut cmd = unshear();
+        cmd.arg("correct")
+            .arg(&shoot)
+            .arg("--out-dir")
+            .arg(&fixed)
+            .arg("--json");
+        if force {
+            cmd.arg("--force");
+        }
+        let out = cmd.assert().success().get_output().clone();
+        assert_eq!(json_lines(&out.stdout).len(), 1, "{}", stderr_of(&out));
+    }
+    assert!(fixed.join("a.jpeg").is_file());
+    assert!(
+        !fixed.join("fixed").exists(),
+        "the output folder was read back"
+    );
+}
+
+/// Two inputs with one output: the first in input order wins, the later one fails naming both
+/// (exit 1), with or without --force; the same file given twice is processed once.
+#[test]
+fn colliding_outputs_fail_the_later_input() {
+    let dir = tempfile::tempdir().expect("temp");
+    let (x, y) = (dir.path().join("x"), dir.path().join("y"));
+    copy("subject01.normal.jpeg", &x.join("a.jpeg"));
+    copy("subject03.normal.jpeg", &y.join("a.jpeg"));
+    let col = dir.path().join("col");
+    for (force, inputs) in [
+        (false, [x.join("a.jpeg"), y.join("a.jpeg")]),
+        (true, [x.clone(), y.clone()]),
+    ] {
+        let mut cmd = unshear();
+        cmd.arg("correct")
+            .args(&inputs)
+            .arg("--out-dir")
+            .arg(&col)
+            .arg("--json");
+        if force {
+            cmd.arg("--force");
+        }
+        let out = cmd.assert().code(1).get_output().clone();
+        let lines = json_lines(&out.stdout);
+        assert_eq!(lines.len(), 2);
+        assert!(lines[0].get("error").is_none(), "the first input wins");
+        let error = lines[1]["error"].as_str().expect("the second fails");
+        assert!(
+            error.contains(&x.join("a.jpeg").display().to_string()),
+            "{error}"
+        );
+        let stderr = stderr_of(&out);
+        assert!(
+            stderr.contains(&y.join("a.jpeg").display().to_string()),
+            "{stderr}"
+        );
+    }
+    // The corrected x, not y: both are kept at the input's size, so compare with x's own run.
+    let alone = dir.path().join("alone.jpeg");
+    unshear()
+        .arg("correct")
+        .arg(x.join("a.jpeg"))
+        .arg("-o")
+        .arg(&alone)
+        .assert()
+        .success();
+    assert_eq!(
+        std::fs::read(col.join("a.jpeg")).expect("read"),
+        std::fs::read(&alone).expect("read")
+    );
+
+    // The same file twice (two spellings): one input.
+    let twice = unshear()
+        .current_dir(&x)
+        .args(["correct", "a.jpeg", "./a.jpeg", "--json", "--out-dir", "tw"])
+        .assert()
+        .success()
+        .get_output()
+        .clone();
+    assert_eq!(json_lines(&twice.stdout).len(), 1);
+}
+
+/// The annotation and the corrected image at one path is a usage error, and nothing is written.
+#[test]
+fn annotate_at_the_output_path_is_a_usage_error() {
+    let dir = tempfile::tempdir().expect("temp");
+    let z = dir.path().join("z.png");
+    let out = unshear()
+        .arg("correct")
+        .arg(fixture("subject01.normal.jpeg"))
+        .arg("--annotate")
+        .arg(&z)
+        .arg("-o")
+        .arg(dir.path().join(".").join("z.png"))
+        .arg("--force")
+        .assert()
+        .code(2)
+        .get_output()
+        .clone();
+    assert!(stderr_of(&out).contains("--annotate"));
+    assert!(!z.exists());
+}
+
+/// Names that are not UTF-8 keep their bytes in the output name, so two such inputs do not
+/// share an output.
+#[cfg(target_os = "linux")]
+#[test]
+fn non_utf8_names_keep_their_bytes() {
+    use std::ffi::OsStr;
+    use std::os::unix::ffi::OsStrExt;
+    let dir = tempfile::tempdir().expect("temp");
+    let name = |bytes: &[u8]| dir.path().join(OsStr::from_bytes(bytes));
+    for b in [b"a\xff.jpeg", b"a\xfe.jpeg"] {
+        copy("subject01.normal.jpeg", &name(b));
+    }
+    unshear()
+        .arg("correct")
+        .arg(name(b"a\xff.jpeg"))
+        .arg(name(b"a\xfe.jpeg"))
+        .assert()
+        .success();
+    assert!(name(b"a\xff.unshear.jpeg").is_file());
+    assert!(name(b"a\xfe.unshear.jpeg").is_file());
+}
+
+/// Negative numbers reach the range checks (exit 2 with the range named) instead of being
+/// taken for flags; a negative shear is valid.
+#[test]
+fn negative_numbers_get_the_range_message() {
+    for (flag, value, says) in [
+        ("--min-confidence", "-0.1", "0 to 1"),
+        ("--jobs", "-1", "--jobs"),
+        ("--max-crops", "-2", "--max-crops"),
+    ] {
+        let out = unshear()
+            .args(["estimate", flag, value])
+            .arg(fixture("subject01.normal.jpeg"))
+            .assert()
+            .code(2)
+            .get_output()
+            .clone();
+        let stderr = stderr_of(&out);
+        assert!(!stderr.contains("unexpected argument"), "{stderr}");
+        assert!(stderr.contains(says), "{flag}: {stderr}");
+    }
+    let dir = tempfile::tempdir().expect("temp");
+    unshear()
+        .args(["correct", "--k", "-0.3", "-o"])
+        .arg(dir.path().join("neg.png"))
+        .arg(fixture("subject01.normal.jpeg"))
+        .assert()
+        .success();
+}
+
+/// An `--out-dir` that is a file is named as not a folder (exit 2, before any work).
+#[test]
+fn out_dir_that_is_a_file_is_not_a_folder() {
+    let dir = tempfile::tempdir().expect("temp");
+    let afile = dir.path().join("afile");
+    std::fs::write(&afile, b"x").expect("write");
+    let out = unshear()
+        .arg("correct")
+        .arg(fixture("subject01.normal.jpeg"))
+        .arg("--out-dir")
+        .arg(&afile)
+        .assert()
+        .code(2)
+        .get_output()
+        .clone();
+    assert!(
+        stderr_of(&out).contains("not a folder"),
+        "{}",
+        stderr_of(&out)
+    );
+}
+
+/// With --annotate and no face, the message says the annotation was written.
+#[test]
+fn no_face_with_annotate_says_the_annotation_was_written() {
+    let dir = tempfile::tempdir().expect("temp");
+    let blank = dir.path().join("blank.png");
+    image::GrayImage::from_pixel(120, 90, image::Luma([90]))
+        .save(&blank)
+        .expect("save");
+    let ann = dir.path().join("ann.png");
+    let out = unshear()
+        .arg("correct")
+        .arg(&blank)
+        .arg("--annotate")
+        .arg(&ann)
+        .assert()
+        .success()
+        .get_output()
+        .clone();
+    let stderr = stderr_of(&out);
+    assert!(ann.is_file());
+    assert!(!dir.path().join("blank.unshear.png").exists());
+    assert!(
+        stderr.contains("only the annotation") && !stderr.contains("nothing written"),
+        "{stderr}"
+    );
+}
+
+/// An input that is not a regular file (here a link to /dev/stdin, a pipe) has no folder to
+/// write beside: without -o it fails asking for -o; with -o it is read.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_pipe_needs_an_output_path() {
+    let dir = tempfile::tempdir().expect("temp");
+    let link = dir.path().join("in.jpeg");
+    std::os::unix::fs::symlink("/dev/stdin", &link).expect("link");
+    let face = std::fs::read(fixture("subject01.normal.jpeg")).expect("read");
+    let out = unshear()
+        .arg("correct")
+        .arg(&link)
+        .write_stdin(face.clone())
+        .assert()
+        .code(1)
+        .get_output()
+        .clone();
+    assert!(stderr_of(&out).contains("-o OUT"), "{}", stderr_of(&out));
+    assert!(!dir.path().join("in.unshear.jpeg").exists());
+    let fixed = dir.path().join("fixed.png");
+    unshear()
+        .arg("correct")
+        .arg(&link)
+        .arg("-o")
+        .arg(&fixed)
+        .write_stdin(face)
+        .assert()
+        .success();
+    assert!(fixed.is_file());
+}
+
+/// `-` is standard input for `video` only: for stills it is a usage error saying so.
+#[test]
+fn dash_for_stills_is_a_usage_error() {
+    for command in ["estimate", "correct"] {
+        let out = unshear()
+            .args([command, "-"])
+            .assert()
+            .code(2)
+            .get_output()
+            .clone();
+        assert!(
+            stderr_of(&out).contains("video only"),
+            "{}",
+            stderr_of(&out)
+        );
+    }
+}
