@@ -35,6 +35,15 @@ pub enum Error {
         /// The limit in force.
         limit: u64,
     },
+    /// A file holds more bytes than any image within the pixel limit can take
+    /// ([`crate::imageio::max_file_bytes`]).
+    #[error("{path}: more than {limit} bytes, larger than any image within the pixel limit")]
+    FileTooLarge {
+        /// The file concerned.
+        path: PathBuf,
+        /// The byte limit in force.
+        limit: u64,
+    },
     /// An OpenCV cascade XML file is malformed or uses something we do not support.
     #[error("cascade: {0}")]
     Cascade(String),

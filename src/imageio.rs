@@ -10,7 +10,7 @@
 use crate::{Error, Result};
 use image::codecs::jpeg::JpegEncoder;
 use image::codecs::pnm::{PnmEncoder, PnmSubtype, SampleEncoding};
-use image::{DynamicImage, GrayImage, ImageDecoder, ImageFormat, ImageReader, Limits};
+use image::{DynamicImage, GrayImage, ImageDecoder, ImageReader, Limits};
 use std::borrow::Cow;
 use std::io::{BufRead, BufWriter, Cursor, Seek, Write};
 use std::path::{Path, PathBuf};
@@ -26,23 +26,64 @@ const MAX_BYTES_PER_PIXEL: u64 = 16;
 /// Read an image file, detecting its format from the content.
 ///
 /// The declared dimensions are checked against `max_pixels` before any pixel is decoded
-/// ([`Error::TooLarge`]), and the decoder's allocations are bounded accordingly. The EXIF
-/// orientation (JPEG, TIFF, WebP) is applied, so the result is upright; a missing or unreadable
-/// orientation tag is treated as "no transform".
+/// ([`Error::TooLarge`]), and the decoder's allocations are bounded accordingly; so is the file
+/// itself ([`max_file_bytes`]), which matters for devices and pipes. The EXIF orientation (JPEG,
+/// TIFF, WebP) is applied, so the result is upright; a missing or unreadable orientation tag is
+/// treated as "no transform".
 ///
 /// # Errors
 /// [`Error::Io`] if the file cannot be opened, [`Error::Image`] if the format is unknown or the
-/// data is corrupt, [`Error::TooLarge`] if the image exceeds `max_pixels`.
+/// data is corrupt, [`Error::TooLarge`] if the image exceeds `max_pixels` or the file
+/// [`max_file_bytes`].
 pub fn read_image(path: &Path, max_pixels: u64) -> Result<DynamicImage> {
-    // Read whole: the JPEG decoder holds the file in memory anyway, and the truncation check
-    // below needs the bytes.
-    let bytes = std::fs::read(path).map_err(|source| Error::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    read_image_with_metadata(path, max_pixels).map(|(img, _)| img)
+}
+
+/// [`read_image`], also returning the file's colour profile and EXIF block ([`Metadata`]) so a
+/// corrected photo can be written with them ([`WriteOptions::metadata`]).
+///
+/// # Errors
+/// As [`read_image`]. Unreadable metadata is not an error: it is left out.
+pub fn read_image_with_metadata(path: &Path, max_pixels: u64) -> Result<(DynamicImage, Metadata)> {
+    let bytes = read_bounded(path, max_file_bytes(max_pixels))?;
     check_complete(&bytes, path)?;
     let open = || ImageReader::new(Cursor::new(bytes.as_slice())).with_guessed_format();
     decode(open, max_pixels, path)
+}
+
+/// The largest image file [`read_image`] reads for a `max_pixels` limit: 8 bytes per pixel (a
+/// 16-bit RGBA image stored uncompressed) plus 16 MiB for headers and metadata. Nothing larger
+/// can hold an image within the limit, and a device such as `/dev/zero` or an endless pipe is
+/// cut off there instead of filling the memory.
+pub fn max_file_bytes(max_pixels: u64) -> u64 {
+    max_pixels.saturating_mul(8).saturating_add(16 << 20)
+}
+
+/// The whole of `path`, or [`Error::TooLarge`] when it holds more than `limit` bytes.
+fn read_bounded(path: &Path, limit: u64) -> Result<Vec<u8>> {
+    use std::io::Read;
+    let io_err = |source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let file = std::fs::File::open(path).map_err(io_err)?;
+    // The size of a regular file sizes the buffer; devices and pipes report none.
+    let known = file
+        .metadata()
+        .ok()
+        .filter(|m| m.is_file())
+        .map(|m| m.len());
+    let mut bytes = Vec::with_capacity(known.unwrap_or(0).min(limit) as usize);
+    file.take(limit.saturating_add(1))
+        .read_to_end(&mut bytes)
+        .map_err(io_err)?;
+    if bytes.len() as u64 > limit {
+        return Err(Error::FileTooLarge {
+            path: path.to_path_buf(),
+            limit,
+        });
+    }
+    Ok(bytes)
 }
 
 /// Rejects a JPEG that stops before its end-of-image marker. The JPEG decoder, like libjpeg,
@@ -76,7 +117,7 @@ fn check_complete(bytes: &[u8], path: &Path) -> Result<()> {
 pub fn read_image_from_memory(bytes: &[u8], max_pixels: u64) -> Result<DynamicImage> {
     check_complete(bytes, Path::new("<memory>"))?;
     let open = || ImageReader::new(Cursor::new(bytes)).with_guessed_format();
-    decode(open, max_pixels, Path::new("<memory>"))
+    decode(open, max_pixels, Path::new("<memory>")).map(|(img, _)| img)
 }
 
 /// Decode with the size check; `open` makes a fresh reader (a second one is needed only when the
@@ -85,7 +126,7 @@ fn decode<R: BufRead + Seek>(
     open: impl Fn() -> std::io::Result<ImageReader<R>>,
     max_pixels: u64,
     path: &Path,
-) -> Result<DynamicImage> {
+) -> Result<(DynamicImage, Metadata)> {
     let io_err = |source| Error::Io {
         path: path.to_path_buf(),
         source,
@@ -127,13 +168,44 @@ fn decode<R: BufRead + Seek>(
     if let Some(e) = too_large(decoder.dimensions()) {
         return Err(e);
     }
-    // A corrupt EXIF block must not make an otherwise good photo unreadable.
+    // A corrupt EXIF block or profile must not make an otherwise good photo unreadable.
+    let icc_profile = decoder.icc_profile().ok().flatten();
+    let mut exif = decoder.exif_metadata().ok().flatten();
     let orientation = decoder
         .orientation()
         .unwrap_or(image::metadata::Orientation::NoTransforms);
     let mut img = DynamicImage::from_decoder(decoder).map_err(image_err)?;
     img.apply_orientation(orientation);
-    Ok(img)
+    if let Some(exif) = exif.as_mut() {
+        // The pixels are upright now: a copied orientation tag would turn them again.
+        let _ = image::metadata::Orientation::remove_from_exif_chunk(exif);
+    }
+    let metadata = Metadata {
+        icc_profile: icc_profile.filter(|p| !p.is_empty()),
+        exif: exif.filter(|e| !e.is_empty()),
+    };
+    Ok((img, metadata))
+}
+
+/// What a photo file says about its pixels besides the pixels: carried from the file read
+/// ([`read_image_with_metadata`]) to the corrected file written ([`WriteOptions::metadata`]) so
+/// that colours stay as shot (a Display P3 or Adobe RGB profile) and the camera, date and place
+/// are kept.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Metadata {
+    /// The embedded ICC colour profile.
+    pub icc_profile: Option<Vec<u8>>,
+    /// The EXIF block (TIFF-structured, without the JPEG `Exif\0\0` prefix), its orientation
+    /// tag reset to "upright" as the pixels read are upright.
+    pub exif: Option<Vec<u8>>,
+}
+
+/// Whether an ICC profile describes pixels of `img`'s kind: its colour space (bytes 16..20 of
+/// the header) must be `RGB ` for a colour image and `GRAY` for a grey one. A CMYK photo's
+/// profile, for instance, does not describe the RGB pixels it was converted to.
+fn profile_fits(profile: &[u8], img: &DynamicImage) -> bool {
+    let want: &[u8] = if is_gray(img) { b"GRAY" } else { b"RGB " };
+    profile.get(16..20) == Some(want)
 }
 
 /// Share of an image's rows from which [`missing_data_warning`] reports a bottom without data:
@@ -193,6 +265,10 @@ pub struct WriteOptions {
     pub protected: Vec<PathBuf>,
     /// JPEG quality, 1..=100 (values outside are clamped).
     pub jpeg_quality: u8,
+    /// Colour profile and EXIF block to write with the image, where the format stores them
+    /// (profile: JPEG, PNG, TIFF, WebP; EXIF: JPEG, PNG, WebP). A profile of another colour
+    /// space than the written pixels' is left out.
+    pub metadata: Metadata,
 }
 
 impl Default for WriteOptions {
@@ -201,6 +277,7 @@ impl Default for WriteOptions {
             overwrite: false,
             protected: Vec::new(),
             jpeg_quality: 95,
+            metadata: Metadata::default(),
         }
     }
 }
@@ -320,18 +397,21 @@ fn convert_for(img: &DynamicImage, format: OutFormat) -> Cow<'_, DynamicImage> {
 fn encode<W: Write + Seek>(
     img: &DynamicImage,
     format: OutFormat,
-    quality: u8,
+    opts: &WriteOptions,
     w: &mut W,
 ) -> image::ImageResult<()> {
+    use image::codecs::{bmp::BmpEncoder, png::PngEncoder, tiff::TiffEncoder, webp::WebPEncoder};
     let img = convert_for(img, format);
+    let meta = &opts.metadata;
     match format {
         OutFormat::Jpeg => {
-            img.write_with_encoder(JpegEncoder::new_with_quality(w, quality.clamp(1, 100)))
+            let quality = opts.jpeg_quality.clamp(1, 100);
+            write_with_metadata(&img, JpegEncoder::new_with_quality(w, quality), meta)
         }
-        OutFormat::Png => img.write_to(w, ImageFormat::Png),
-        OutFormat::Bmp => img.write_to(w, ImageFormat::Bmp),
-        OutFormat::Tiff => img.write_to(w, ImageFormat::Tiff),
-        OutFormat::WebP => img.write_to(w, ImageFormat::WebP),
+        OutFormat::Png => write_with_metadata(&img, PngEncoder::new(w), meta),
+        OutFormat::Bmp => img.write_with_encoder(BmpEncoder::new(w)),
+        OutFormat::Tiff => write_with_metadata(&img, TiffEncoder::new(w), meta),
+        OutFormat::WebP => write_with_metadata(&img, WebPEncoder::new_lossless(w), meta),
         OutFormat::Pgm | OutFormat::Ppm | OutFormat::Pnm => {
             let subtype = if is_gray(&img) {
                 PnmSubtype::Graymap(SampleEncoding::Binary)
@@ -341,6 +421,23 @@ fn encode<W: Write + Seek>(
             img.write_with_encoder(PnmEncoder::new(w).with_subtype(subtype))
         }
     }
+}
+
+/// Encodes `img` with `encoder`, handing it the profile (when it fits the pixels,
+/// [`profile_fits`]) and the EXIF block of `meta`; what the format cannot store is left out.
+fn write_with_metadata(
+    img: &DynamicImage,
+    mut encoder: impl image::ImageEncoder,
+    meta: &Metadata,
+) -> image::ImageResult<()> {
+    if let Some(p) = meta.icc_profile.as_ref().filter(|p| profile_fits(p, img)) {
+        // Unsupported by the format: the image is still written, without it.
+        let _ = encoder.set_icc_profile(p.clone());
+    }
+    if let Some(x) = &meta.exif {
+        let _ = encoder.set_exif_metadata(x.clone());
+    }
+    img.write_with_encoder(encoder)
 }
 
 /// Whether `a` and `b` name the same existing file: equal canonical paths, or (on Unix) the same
@@ -380,7 +477,7 @@ pub fn write_image_atomic(img: &DynamicImage, path: &Path, opts: WriteOptions) -
             .to_owned(),
     })?;
     write_atomic(path, &opts, |w| {
-        encode(img, format, opts.jpeg_quality, w).map_err(|source| Error::Image {
+        encode(img, format, &opts, w).map_err(|source| Error::Image {
             path: path.to_path_buf(),
             source,
         })
@@ -681,6 +778,102 @@ mod tests {
         );
     }
 
+    /// A made-up ICC profile of colour space `space`: only its header is looked at here.
+    fn fake_profile(space: &[u8; 4]) -> Vec<u8> {
+        let mut p: Vec<u8> = (0..200u8).collect();
+        p[16..20].copy_from_slice(space);
+        p
+    }
+
+    #[test]
+    fn profile_and_exif_are_carried_to_the_output_upright() {
+        let img = RgbImage::from_fn(32, 16, |x, y| Rgb([smooth(x, y, 0), smooth(x, y, 1), 9]));
+        let jpeg = jpeg_with_orientation(&img, 6);
+        let (upright, meta) = {
+            let dir = tempfile::tempdir().unwrap();
+            let path = dir.path().join("in.jpg");
+            std::fs::write(&path, &jpeg).unwrap();
+            read_image_with_metadata(&path, DEFAULT_MAX_PIXELS).unwrap()
+        };
+        assert_eq!(upright.dimensions(), (16, 32));
+        let exif = meta.exif.clone().expect("the EXIF block is read");
+        assert_eq!(
+            image::metadata::Orientation::from_exif_chunk(&exif),
+            Some(image::metadata::Orientation::NoTransforms),
+            "the orientation tag is reset, the pixels being upright"
+        );
+        let meta = Metadata {
+            icc_profile: Some(fake_profile(b"RGB ")),
+            ..meta
+        };
+        let dir = tempfile::tempdir().unwrap();
+        for name in ["out.jpg", "out.png", "out.webp", "out.tif"] {
+            let path = dir.path().join(name);
+            let opts = WriteOptions {
+                metadata: meta.clone(),
+                ..WriteOptions::default()
+            };
+            write_image_atomic(&upright, &path, opts).unwrap();
+            let (back, read) = read_image_with_metadata(&path, DEFAULT_MAX_PIXELS).unwrap();
+            assert_eq!(back.dimensions(), (16, 32), "{name}: not turned again");
+            if name == "out.tif" {
+                // TIFF: the encoder stores the profile (checked with Pillow) but the decoder does
+                // not read it back, and stores no EXIF block.
+                continue;
+            }
+            assert_eq!(read.icc_profile, meta.icc_profile, "{name}: profile");
+            assert_eq!(read.exif, meta.exif, "{name}: EXIF");
+        }
+        // Without metadata asked for, none is written.
+        let path = dir.path().join("plain.jpg");
+        write_image_atomic(&upright, &path, WriteOptions::default()).unwrap();
+        let (_, none) = read_image_with_metadata(&path, DEFAULT_MAX_PIXELS).unwrap();
+        assert_eq!(none, Metadata::default());
+    }
+
+    #[test]
+    fn a_profile_of_other_pixels_is_left_out() {
+        let rgb = DynamicImage::ImageRgb8(RgbImage::new(8, 8));
+        let gray = DynamicImage::ImageLuma8(GrayImage::new(8, 8));
+        assert!(profile_fits(&fake_profile(b"RGB "), &rgb));
+        assert!(!profile_fits(&fake_profile(b"CMYK"), &rgb));
+        assert!(!profile_fits(&fake_profile(b"RGB "), &gray));
+        assert!(profile_fits(&fake_profile(b"GRAY"), &gray));
+        assert!(!profile_fits(b"short", &rgb));
+        // A CMYK photo's profile does not travel to its RGB output.
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("out.png");
+        let opts = WriteOptions {
+            metadata: Metadata {
+                icc_profile: Some(fake_profile(b"CMYK")),
+                exif: None,
+            },
+            ..WriteOptions::default()
+        };
+        write_image_atomic(&rgb, &path, opts).unwrap();
+        let (_, read) = read_image_with_metadata(&path, DEFAULT_MAX_PIXELS).unwrap();
+        assert_eq!(read.icc_profile, None);
+    }
+
+    #[test]
+    fn files_larger_than_any_image_within_the_limit_are_cut_off() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("big.pgm");
+        // 100 pixels allow 800 bytes and the 16 MiB slack; this file has one byte more.
+        let limit = max_file_bytes(100);
+        std::fs::write(&path, vec![b'P'; limit as usize + 1]).unwrap();
+        assert!(matches!(
+            read_image(&path, 100),
+            Err(Error::FileTooLarge { limit: l, .. }) if l == limit
+        ));
+        // A device without end is read only up to the limit.
+        #[cfg(unix)]
+        assert!(matches!(
+            read_image(Path::new("/dev/zero"), 100),
+            Err(Error::FileTooLarge { .. })
+        ));
+    }
+
     #[test]
     fn oversized_images_are_rejected_before_decoding() {
         // A binary PGM header that declares 100000 x 100000 pixels, followed by almost no data:
@@ -732,7 +925,7 @@ mod tests {
         // A small real image over a small limit.
         let mut png = Vec::new();
         test_images()[0]
-            .write_to(&mut Cursor::new(&mut png), ImageFormat::Png)
+            .write_to(&mut Cursor::new(&mut png), image::ImageFormat::Png)
             .unwrap();
         assert!(matches!(
             read_image_from_memory(&png, 100),

@@ -284,3 +284,46 @@ fn dash_for_stills_is_a_usage_error() {
         );
     }
 }
+
+/// The corrected photo keeps the input's colour profile and EXIF block, whatever format it is
+/// written in that stores them.
+#[test]
+fn corrected_photos_keep_their_profile_and_exif() {
+    use image::ImageEncoder;
+    let dir = tempfile::tempdir().expect("temp");
+    let face = image::open(fixture("subject01.normal.jpeg")).expect("fixture");
+    // A made-up RGB profile (only its header's colour space is looked at) and an EXIF block
+    // holding an upright orientation tag (big-endian TIFF, one entry).
+    let mut profile: Vec<u8> = (0..=255).collect();
+    profile[16..20].copy_from_slice(b"RGB ");
+    let mut exif = b"MM\x00\x2a\x00\x00\x00\x08\x00\x01".to_vec();
+    exif.extend_from_slice(&[0x01, 0x12, 0, 3, 0, 0, 0, 1, 0, 1, 0, 0, 0, 0, 0, 0]);
+    let input = dir.path().join("in.jpg");
+    let mut jpeg = Vec::new();
+    let mut encoder = image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpeg, 95);
+    encoder.set_icc_profile(profile.clone()).expect("icc");
+    encoder.set_exif_metadata(exif.clone()).expect("exif");
+    let rgb = face.to_rgb8();
+    encoder
+        .write_image(
+            &rgb,
+            rgb.width(),
+            rgb.height(),
+            image::ExtendedColorType::Rgb8,
+        )
+        .expect("encode");
+    std::fs::write(&input, jpeg).expect("write");
+    for name in ["out.jpg", "out.png", "out.webp"] {
+        let out = dir.path().join(name);
+        unshear()
+            .arg("correct")
+            .arg(&input)
+            .args(["--k", "0.1", "-o"])
+            .arg(&out)
+            .assert()
+            .success();
+        let (_, meta) = unshear::imageio::read_image_with_metadata(&out, 1 << 24).expect("read");
+        assert_eq!(meta.icc_profile.as_ref(), Some(&profile), "{name}");
+        assert_eq!(meta.exif.as_ref(), Some(&exif), "{name}");
+    }
+}

@@ -51,7 +51,9 @@ pub fn to_pyerr(e: Error) -> PyErr {
             std::io::ErrorKind::IsADirectory => PyIsADirectoryError::new_err(message),
             _ => PyOSError::new_err(message),
         },
-        Error::Image { .. } | Error::TooLarge { .. } => PyOSError::new_err(message),
+        Error::Image { .. } | Error::TooLarge { .. } | Error::FileTooLarge { .. } => {
+            PyOSError::new_err(message)
+        }
         Error::Refused { .. } => PyFileExistsError::new_err(message),
         Error::InvalidArgument(_) | Error::Video(_) => PyValueError::new_err(message),
         _ => PyRuntimeError::new_err(message),

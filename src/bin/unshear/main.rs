@@ -57,7 +57,7 @@ fn main() -> ExitCode {
         Ok(true) => ExitCode::SUCCESS,
         Ok(false) => ExitCode::from(1),
         Err(e) => {
-            eprintln!("unshear: {e:#}");
+            eprintln!("unshear: {}", error_chain(&e));
             ExitCode::from(1)
         }
     }
@@ -375,7 +375,7 @@ fn correct_one(
             out.display()
         );
     }
-    let img = imageio::read_image(&input.path, a.model.max_pixels)?;
+    let (img, metadata) = imageio::read_image_with_metadata(&input.path, a.model.max_pixels)?;
     let report = estimate_with_warnings(unshear, &img);
     if let Some(annotate) = &a.annotate {
         create_parent(annotate)?;
@@ -416,6 +416,8 @@ fn correct_one(
         WriteOptions {
             overwrite: a.force,
             protected: protected.to_vec(),
+            // The photo's colour profile, camera, date and place stay with it.
+            metadata,
             ..Default::default()
         },
     )?;
