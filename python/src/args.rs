@@ -96,8 +96,8 @@ pub fn smoothing_lag(value: &Bound<'_, PyAny>) -> PyResult<usize> {
     integer("smoothing_lag", value, 0, MAX_SMOOTHING_LAG)
 }
 
-pub fn redetect(value: &Bound<'_, PyAny>) -> PyResult<u64> {
-    integer("redetect", value, 1, U64_MAX)
+pub fn redetect(value: &Bound<'_, PyAny>) -> PyResult<Option<u64>> {
+    optional(value, |v| integer("redetect", v, 1, U64_MAX))
 }
 
 pub fn lost_interval(value: &Bound<'_, PyAny>) -> PyResult<u64> {

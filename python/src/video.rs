@@ -172,7 +172,7 @@ impl VideoCorrector {
         *,
         fps = 25.0,
         smoothing_lag = unshear::video::temporal::DEFAULT_SMOOTHING_LAG,
-        redetect = 30,
+        redetect = None,
         lost_interval = 5,
         detect_width = 640,
         hold = 0.5,
@@ -189,7 +189,7 @@ impl VideoCorrector {
         py: Python<'_>,
         #[pyo3(from_py_with = args::fps)] fps: f64,
         #[pyo3(from_py_with = args::smoothing_lag)] smoothing_lag: usize,
-        #[pyo3(from_py_with = args::redetect)] redetect: u64,
+        #[pyo3(from_py_with = args::redetect)] redetect: Option<u64>,
         #[pyo3(from_py_with = args::lost_interval)] lost_interval: u64,
         #[pyo3(from_py_with = args::detect_width)] detect_width: u32,
         #[pyo3(from_py_with = args::hold)] hold: f64,
@@ -216,7 +216,9 @@ impl VideoCorrector {
         let unshear = py.detach(|| build(&cfg, Use::Video)).map_err(to_pyerr)?;
         let options = ProcessOptions {
             tracker: TrackerParams {
-                redetect_interval: redetect,
+                redetect_interval: redetect.unwrap_or(
+                    TrackerParams::for_detector(unshear.uses_network_detector()).redetect_interval,
+                ),
                 lost_interval,
                 detect_width,
                 ..Default::default()

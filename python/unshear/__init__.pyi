@@ -268,7 +268,8 @@ class VideoCorrector:
     (``max_crops`` defaults to 2 and ``shear_model`` to equation5 here, as for ``unshear
     video``).
 
-    ``smoothing_lag`` is 0 to 250 frames (they are held in memory); ``redetect`` and
+    ``smoothing_lag`` is 0 to 250 frames (they are held in memory); ``redetect`` (default:
+    5 with the network detector, 30 with Viola-Jones, as for ``unshear video``) and
     ``lost_interval`` are at least 1 frame; ``detect_width`` is in pixels (0: full size);
     ``fps`` and ``decay`` are above 0, ``hold`` at least 0 (seconds). Bad values raise
     ``ValueError`` and wrong types ``TypeError``, as for ``Unshear``.
@@ -279,7 +280,7 @@ class VideoCorrector:
         *,
         fps: float = 25.0,
         smoothing_lag: int = 6,
-        redetect: int = 30,
+        redetect: int | None = None,
         lost_interval: int = 5,
         detect_width: int = 640,
         hold: float = 0.5,

@@ -42,6 +42,24 @@ pub struct TrackerParams {
     pub min_hint: f64,
 }
 
+/// [`TrackerParams::redetect_interval`] with the network detector: it is cheap enough to find a
+/// face entering the frame within a few frames (the cascade's default is 30).
+pub const NETWORK_REDETECT_INTERVAL: u64 = 5;
+
+impl TrackerParams {
+    /// The defaults for a corrector whose faces the network detector finds (`network`, see
+    /// [`crate::Unshear::uses_network_detector`]): full detection every
+    /// [`NETWORK_REDETECT_INTERVAL`] frames; otherwise as [`TrackerParams::default`] (every 30,
+    /// the cascade being slower).
+    pub fn for_detector(network: bool) -> Self {
+        let mut params = Self::default();
+        if network {
+            params.redetect_interval = NETWORK_REDETECT_INTERVAL;
+        }
+        params
+    }
+}
+
 impl Default for TrackerParams {
     fn default() -> Self {
         Self {

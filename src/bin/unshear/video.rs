@@ -21,9 +21,6 @@ use crate::args::{ChromaArg, KSourceArg, VideoArgs};
 use crate::ffmpeg::{PendingDecoder, PendingEncoder, TempOutput, Tools};
 use crate::models::load_models;
 
-/// Frames between the network detector's full detections by default: it is cheap enough to
-/// find a face entering the frame within a few frames (the cascade's default is 30).
-const NETWORK_REDETECT_INTERVAL: u64 = 5;
 use crate::report::{face, r4, JsonFace};
 use crate::{interrupt, usage_error};
 use unshear::imageio::WriteOptions;
@@ -378,11 +375,9 @@ pub fn video(a: VideoArgs) -> Result<()> {
     let fps = format.fps();
     let options = ProcessOptions {
         tracker: TrackerParams {
-            redetect_interval: a.redetect.unwrap_or(if unshear.uses_network_detector() {
-                NETWORK_REDETECT_INTERVAL
-            } else {
-                TrackerParams::default().redetect_interval
-            }),
+            redetect_interval: a.redetect.unwrap_or(
+                TrackerParams::for_detector(unshear.uses_network_detector()).redetect_interval,
+            ),
             lost_interval: a.lost_interval,
             detect_width: a.detect_width,
             ..Default::default()
