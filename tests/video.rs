@@ -583,3 +583,36 @@ fn json_over_output_missing_folders_and_numbering_gaps() {
         "{stderr}"
     );
 }
+
+/// `--json=FILE` appears whole or not at all: a run that fails part-way (a stream cut in a
+/// frame) leaves no JSON file and no temporary one; a run that succeeds writes every frame's line.
+#[test]
+fn json_file_is_written_whole_or_not_at_all() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let frames: Vec<_> = clip().into_iter().take(4).collect();
+    let bytes = y4m_bytes(&frames);
+    let cut = dir.path().join("cut.y4m");
+    std::fs::write(&cut, &bytes[..bytes.len() - 100]).expect("write");
+    let json = dir.path().join("frames.jsonl");
+    let run = |input: &std::path::Path| {
+        Command::cargo_bin("unshear")
+            .expect("binary")
+            .args(["video", "--no-correct"])
+            .arg(input)
+            .arg(format!("--json={}", json.display()))
+            .output()
+            .expect("runs")
+    };
+    assert_eq!(run(&cut).status.code(), Some(1));
+    assert!(!json.exists(), "a failed run left a JSON file");
+    let left: Vec<_> = std::fs::read_dir(dir.path())
+        .expect("list")
+        .map(|e| e.expect("entry").file_name())
+        .collect();
+    assert_eq!(left.len(), 1, "only the clip is left: {left:?}");
+    let whole = dir.path().join("clip.y4m");
+    std::fs::write(&whole, &bytes).expect("write");
+    assert!(run(&whole).status.success());
+    let text = std::fs::read_to_string(&json).expect("written");
+    assert_eq!(text.lines().count(), frames.len());
+}

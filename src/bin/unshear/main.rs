@@ -426,7 +426,7 @@ fn correct_one(
 
 /// Creates the folder an output goes into, if it does not exist; a file in the way is named as
 /// not a folder.
-fn create_parent(path: &Path) -> Result<()> {
+pub(crate) fn create_parent(path: &Path) -> Result<()> {
     if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
         if let Some(file) = parent
             .ancestors()

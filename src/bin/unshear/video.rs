@@ -22,7 +22,7 @@ use crate::ffmpeg::{PendingDecoder, PendingEncoder, TempOutput, Tools};
 use crate::models::load_models;
 
 use crate::report::{face, r4, JsonFace};
-use crate::{interrupt, usage_error};
+use crate::{create_parent, interrupt, usage_error};
 use unshear::imageio::WriteOptions;
 use unshear::video::ffmpeg::{
     decode_args, even_size, y4m_target, Capabilities, EncodePlan, EncodeSettings, Probe,
@@ -402,6 +402,7 @@ pub fn video(a: VideoArgs) -> Result<()> {
     // Every refusal before anything is created (the JSON file included).
     check_output(&output, &protected, a.force, &a.frame_format)?;
     // Per-frame JSON and progress, on the processing thread.
+    let mut json_tmp: Option<(TempOutput, PathBuf)> = None;
     let mut json_out: Option<Box<dyn Write>> = match a.json.as_deref() {
         None => None,
         Some(p) if is_stdio(p) => Some(Box::new(BufWriter::new(std::io::stdout()))),
@@ -412,10 +413,16 @@ pub fn video(a: VideoArgs) -> Result<()> {
             if p.exists() && !a.force {
                 anyhow::bail!("{}: exists; use --force to replace it", p.display());
             }
+            // Written beside it and renamed into place at the end, as the video: a run that
+            // fails leaves no partial JSON.
             create_parent(p)?;
-            Some(Box::new(BufWriter::new(
-                File::create(p).with_context(|| format!("creating {}", p.display()))?,
-            )))
+            let tmp = TempOutput::new(&folder_of(p), "jsonl")?;
+            let file = File::options()
+                .write(true)
+                .open(tmp.path())
+                .with_context(|| format!("opening {}", tmp.path().display()))?;
+            json_tmp = Some((tmp, p.to_path_buf()));
+            Some(Box::new(BufWriter::new(file)))
         }
     };
     let mut json_error: Option<std::io::Error> = None;
@@ -505,6 +512,11 @@ pub fn video(a: VideoArgs) -> Result<()> {
             return Err(e).context("writing the JSON lines");
         }
     }
+    drop(json_out);
+    if let Some((tmp, p)) = json_tmp {
+        tmp.persist(&p, a.force)
+            .with_context(|| format!("writing {}", p.display()))?;
+    }
     let fps = stats.frames as f64 / stats.seconds.max(1e-9);
     eprintln!(
         "unshear video: {} frames in {:.2} s ({fps:.1} fps); faces in {frames_with_faces} \
@@ -578,10 +590,7 @@ impl EncodeJob {
                 out.display()
             );
         }
-        let dir = match out.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-            _ => PathBuf::from("."),
-        };
+        let dir = folder_of(out);
         create_parent(out)?;
         let ext = out
             .extension()
@@ -795,12 +804,11 @@ fn check_output(output: &Output, protected: &[PathBuf], force: bool, ext: &str) 
     Ok(())
 }
 
-/// Creates the missing folders above the file `path`.
-fn create_parent(path: &Path) -> Result<()> {
+/// The folder `path` is in (`.` for a bare file name).
+fn folder_of(path: &Path) -> PathBuf {
     match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() && !d.is_dir() => std::fs::create_dir_all(d)
-            .with_context(|| format!("creating the folder {} for {}", d.display(), path.display())),
-        _ => Ok(()),
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
     }
 }
 
