@@ -511,6 +511,16 @@ pub struct Encoder {
     pad: Option<(u32, u32)>,
 }
 
+/// `frame` padded to `pad` when given (see [`Encoder`]'s `pad`).
+fn pad_to<T: unshear::video::YuvSample>(
+    frame: &mut unshear::video::YuvFrame<T>,
+    pad: Option<(u32, u32)>,
+) {
+    if let Some((w, h)) = pad {
+        unshear::video::ffmpeg::pad_luma(frame, w, h);
+    }
+}
+
 /// An encoding `ffmpeg` started and not yet written to (see [`Encoder`]).
 pub struct PendingEncoder {
     child: ChildProcess,
@@ -564,28 +574,20 @@ impl FrameSink for Encoder {
         let Some(w) = self.writer.as_mut() else {
             return Err(unshear::Error::Video("the encoder is closed".into()));
         };
-        use unshear::video::ffmpeg::pad_luma;
-        let (pw, ph) = self.pad.unwrap_or((0, 0));
-        let padded = self.pad.is_some();
+        let pad = self.pad;
         let result = match frame {
             VideoFrame::Image(i) => {
                 let f = w.format();
                 let mut yuv = unshear::video::color::image_to_yuv(&i, f.chroma, f.full_range);
-                if padded {
-                    pad_luma(&mut yuv, pw, ph);
-                }
+                pad_to(&mut yuv, pad);
                 w.write_frame(&yuv)
             }
             VideoFrame::Yuv(mut f) => {
-                if padded {
-                    pad_luma(&mut f, pw, ph);
-                }
+                pad_to(&mut f, pad);
                 w.write_frame(&f)
             }
             VideoFrame::Yuv16(mut f) => {
-                if padded {
-                    pad_luma(&mut f, pw, ph);
-                }
+                pad_to(&mut f, pad);
                 w.write_frame16(&f)
             }
         };

@@ -285,7 +285,7 @@ fn output_path(a: &CorrectArgs, input: &Input) -> Result<PathBuf> {
 /// `path` made absolute, its longest existing ancestor canonicalised (links and `..` resolved
 /// by the file system) and the rest cleaned lexically: two spellings of one output give the
 /// same result.
-fn normalise(path: &Path) -> PathBuf {
+pub(crate) fn normalise(path: &Path) -> PathBuf {
     let absolute = std::env::current_dir()
         .map(|d| d.join(path))
         .unwrap_or_else(|_| path.to_path_buf());

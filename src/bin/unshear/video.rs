@@ -22,7 +22,7 @@ use crate::ffmpeg::{PendingDecoder, PendingEncoder, TempOutput, Tools};
 use crate::models::load_models;
 
 use crate::report::{face, r4, JsonFace};
-use crate::{create_parent, interrupt, usage_error};
+use crate::{create_parent, interrupt, normalise, usage_error};
 use unshear::imageio::WriteOptions;
 use unshear::video::ffmpeg::{
     decode_args, even_size, y4m_target, Capabilities, EncodePlan, EncodeSettings, Probe,
@@ -407,12 +407,7 @@ pub fn video(a: VideoArgs) -> Result<()> {
         None => None,
         Some(p) if is_stdio(p) => Some(Box::new(BufWriter::new(std::io::stdout()))),
         Some(p) => {
-            if protected.iter().any(|i| same_path(i, p)) {
-                anyhow::bail!("{}: refusing to write the JSON over an input", p.display());
-            }
-            if p.exists() && !a.force {
-                anyhow::bail!("{}: exists; use --force to replace it", p.display());
-            }
+            refuse_overwrite(p, &protected, a.force)?;
             // Written beside it and renamed into place at the end, as the video: a run that
             // fails leaves no partial JSON.
             create_parent(p)?;
@@ -761,38 +756,27 @@ fn frame_rate_fraction(fps: f64) -> (u32, u32) {
     }
 }
 
-/// Whether `a` and `b` name the same file, existing or not (a missing file is compared by its
-/// canonical folder and its name).
+/// Whether `a` and `b` name the same file, existing or not (compared as `correct` compares
+/// outputs, [`normalise`]).
 fn same_target(a: &Path, b: &Path) -> bool {
-    if same_path(a, b) {
-        return true;
-    }
-    let resolved = |p: &Path| -> Option<PathBuf> {
-        let name = p.file_name()?;
-        let dir = match p.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d,
-            _ => Path::new("."),
-        };
-        match dir.canonicalize() {
-            Ok(d) => Some(d.join(name)),
-            Err(_) => std::path::absolute(p).ok(),
-        }
-    };
-    match (resolved(a), resolved(b)) {
-        (Some(x), Some(y)) => x == y,
-        _ => false,
-    }
+    same_path(a, b) || normalise(a) == normalise(b)
 }
 
 /// Refuses an output that is an input or exists without `--force`, before anything is
 /// written (a frame folder: by its first frame).
 fn check_output(output: &Output, protected: &[PathBuf], force: bool, ext: &str) -> Result<()> {
-    let file = match output {
-        Output::Y4mFile(o) | Output::Container(o) => o.clone(),
-        Output::Folder(dir) => dir.join(format!("000000.{ext}")),
-        Output::None | Output::Stdout => return Ok(()),
-    };
-    if protected.iter().any(|p| same_path(p, &file)) {
+    match output {
+        Output::Y4mFile(o) | Output::Container(o) => refuse_overwrite(o, protected, force),
+        Output::Folder(dir) => {
+            refuse_overwrite(&dir.join(format!("000000.{ext}")), protected, force)
+        }
+        Output::None | Output::Stdout => Ok(()),
+    }
+}
+
+/// Refuses to write `file` when it is an input, or exists without `--force`.
+fn refuse_overwrite(file: &Path, protected: &[PathBuf], force: bool) -> Result<()> {
+    if protected.iter().any(|p| same_path(p, file)) {
         bail!("refusing to write {}: it is an input file", file.display());
     }
     if file.exists() && !force {
