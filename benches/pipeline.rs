@@ -252,8 +252,25 @@ fn bench(c: &mut Criterion) {
         state ^= state << 5;
         image::Luma([(state >> 24) as u8])
     });
+    // A sheared frame with one small face (the fixture at a quarter of the frame's height, its
+    // face box about 155 px wide): the default searches the image de-sheared by the shear
+    // measured again, from half that face's size.
+    let quarter = img.resize(1920, 270, FilterType::Triangle).to_luma8();
+    let mut small = image::GrayImage::from_pixel(1920, 1080, image::Luma([128]));
+    image::imageops::overlay(&mut small, &quarter, 800, 400);
+    let small_sheared = unshear::warp::apply_shear(
+        &image::DynamicImage::ImageLuma8(small),
+        unshear::Shear::about_middle(0.3, 1080),
+        unshear::warp::Interpolation::Linear,
+        unshear::warp::Canvas::Same,
+    )
+    .0
+    .into_luma8();
     let mut group = c.benchmark_group("estimate whole 1920x1080 frame");
     group.sample_size(10);
+    group.bench_function("sheared 0.3, small face, all threads", |b| {
+        b.iter(|| unshear.estimate_gray(&small_sheared))
+    });
     for (name, u) in searches {
         group.bench_function(format!("{name}all threads"), |b| {
             b.iter(|| u.estimate_gray(&frame))

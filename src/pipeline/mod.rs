@@ -41,23 +41,44 @@ pub use search::{
     THOROUGH_ROLL_HYPOTHESES, THOROUGH_SHEAR_HYPOTHESES, WEAK_BOX_MIN_WIDTH,
 };
 
-use crate::config::Config;
+use crate::config::{Config, MIN_NETWORK_FACE};
 pub use crate::config::{Detector, FaceSearch, Locator};
+use crate::detect::boxes::EYE_DISTANCE_PER_BOX_WIDTH;
 use crate::detect::{Cascade, FaceDetector, ProposalNet};
 use crate::error::Result;
 use crate::filters::{EyeFilters, FilterType};
 use crate::geometry::{Point, Rect};
 use crate::locate::network::{Budget, LandmarkNet};
-use combine::most_confident_of_overlapping;
+use combine::{measured_shear, most_confident_of_overlapping};
 use proposals::{
-    network_windows, proposal_detection, proposal_detections, proposal_is_new, proposal_shows,
-    settle_unsure_faces, window_is_face, window_is_new,
+    network_windows, network_windows_desheared, proposal_detection, proposal_detections,
+    proposal_is_new, proposal_shows, settle_unsure_faces, window_is_face, window_is_new,
 };
 use search::{
     overlapping_groups, tries_of_group, FallbackDetector, ThoroughDetectors,
-    NEAR_MISS_MIN_FACE_SCORE, THOROUGH_MIN_NEIGHBORS, THOROUGH_ROLL_HYPOTHESES as THOROUGH_ROLLS,
-    THOROUGH_SHEAR_HYPOTHESES as THOROUGH_SHEARS, THOROUGH_STAGE_SLACK, THOROUGH_VIEW_MIN_FACE,
+    MEASURED_VIEW_MIN_SHEAR, NEAR_MISS_MIN_FACE_SCORE, THOROUGH_MIN_NEIGHBORS,
+    THOROUGH_ROLL_HYPOTHESES as THOROUGH_ROLLS, THOROUGH_SHEAR_HYPOTHESES as THOROUGH_SHEARS,
+    THOROUGH_STAGE_SLACK, THOROUGH_VIEW_MIN_FACE,
 };
+
+/// The smallest face the network detector's pass over the image de-sheared by the measured
+/// shear looks for, as a share of the smallest face found
+/// ([`Unshear::judge_measured_view`]): the faces of one photo are mostly at like distances
+/// from the camera, and a face under half the size of every other was searched for by the
+/// first pass all the same.
+pub(crate) const MEASURED_VIEW_MIN_FACE_RATIO: f64 = 0.5;
+
+/// The smallest face (box width) the pass over the image de-sheared by the measured shear
+/// looks for when the first pass looked from `min_width` (at least [`MIN_NETWORK_FACE`]) on
+/// pyramid levels `step` apart and the smallest face found is `smallest` wide: the first
+/// pass's level holding [`MEASURED_VIEW_MIN_FACE_RATIO`] times `smallest`, so that both passes
+/// see faces at the same scales (a borderline face's window comes and goes with them).
+pub(crate) fn measured_view_min_width(min_width: f64, smallest: f64, step: f64) -> f64 {
+    let min_width = min_width.max(f64::from(MIN_NETWORK_FACE));
+    let levels = (MEASURED_VIEW_MIN_FACE_RATIO * smallest / min_width).ln() / step.ln();
+    // The tolerance keeps a face exactly on a level on it (the logarithms' rounding).
+    min_width * step.powf((levels + 1e-9).floor().max(0.0))
+}
 
 /// The largest head roll (degrees) of a face found by the network detector whose estimate is
 /// accepted: at 45 degrees, two of the six fixture cases
@@ -288,6 +309,7 @@ impl Unshear {
             let windows = network_windows(net, gray, min_width);
             let budget = self.config.network_budget;
             self.judge_windows(gray, windows, None, budget, &mut all);
+            self.judge_measured_view(net, gray, min_width, budget, &mut all);
             return most_confident_of_overlapping(all);
         }
         let thorough = self.thorough_detectors();
@@ -441,6 +463,36 @@ impl Unshear {
         // cannot hide that face's own window.
         self.take_second_looks(gray, &second_looks, start_k, budget, found, found_by);
         settle_unsure_faces(found, first_new);
+    }
+
+    /// Adds to `found` the faces the network detector finds in `gray` de-sheared by the shear
+    /// the faces of `found` measured, when that is at least [`MEASURED_VIEW_MIN_SHEAR`]:
+    /// rolling-shutter skew is one per frame, so there the faces the detector missed sheared
+    /// are upright, where it is surest of them. Its windows are judged as the first pass's
+    /// ([`Self::judge_windows`]), the landmark network started from the measured shear. Faces
+    /// are looked for from [`MEASURED_VIEW_MIN_FACE_RATIO`] times the smallest face found (and
+    /// `min_width`) up, on the first pass's scales: the pass's cost falls with the square of
+    /// its smallest face, so on a frame with one large face it costs little.
+    fn judge_measured_view(
+        &self,
+        net: &ProposalNet,
+        gray: &GrayImage,
+        min_width: f64,
+        budget: Budget,
+        found: &mut Vec<(Rect, Option<FaceReport>)>,
+    ) {
+        let Some(k) = measured_shear(found).filter(|k| k.abs() >= MEASURED_VIEW_MIN_SHEAR) else {
+            return;
+        };
+        let smallest = found
+            .iter()
+            .filter_map(|(_, r)| r.map(|r| r.right_eye.distance(r.left_eye)))
+            .fold(f64::INFINITY, f64::min)
+            / EYE_DISTANCE_PER_BOX_WIDTH;
+        let step = net.default_params().scale_step;
+        let min_width = measured_view_min_width(min_width, smallest, step);
+        let windows = network_windows_desheared(net, gray, min_width, k);
+        self.judge_windows(gray, windows, Some(k), budget, found);
     }
 
     /// The second looks of [`Self::judge_windows`], strongest first, among the faces `found`

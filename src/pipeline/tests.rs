@@ -1,7 +1,7 @@
 use super::combine::{combined_shear, consensus, holds_eyes, most_confident_of_overlapping};
 use super::proposals::{
-    proposal_detection, proposal_eyes, proposal_is_new, proposal_shows, settle_unsure_faces,
-    window_is_new, HIDING_MIN_CONFIDENCE,
+    network_windows, network_windows_desheared, proposal_detection, proposal_eyes, proposal_is_new,
+    proposal_shows, settle_unsure_faces, window_is_new, HIDING_MIN_CONFIDENCE,
 };
 use super::search::{
     overlapping_groups, strongest_of_overlapping, tries_of_group, View, THOROUGH_BOX_TRIES,
@@ -802,4 +802,54 @@ fn a_second_look_displaces_only_weaker_windows_lower_scored_faces() {
     let strong = hiding(1.0);
     assert_eq!(judged(strong, 1.0), vec![strong]);
     assert_eq!(judged(weak, 9.0), vec![weak]);
+}
+
+/// The network detector's windows in a view de-sheared by the shear measured are moved back
+/// onto the face in the input: the strongest window's eyes are where the face's are (within
+/// a quarter of an eye distance, the detector's stated precision) and its shear is the view's
+/// plus the little it regressed there (within 0.1 of the face's measured shear; the detector's
+/// shear is off by a median 0.05). A shear of 0 gives the single pass's windows exactly.
+#[test]
+fn windows_of_a_de_sheared_view_land_on_the_face_in_the_input() {
+    let (u, face_image, face, eyes, distance) = bundled_example_face();
+    // The face near the top of a taller image: its eyes 190 rows above the middle row, where
+    // the shear moves them by 57 px (a window not moved back would be an eye distance off).
+    let mut gray = GrayImage::from_pixel(320, 600, image::Luma([128]));
+    image::imageops::overlay(&mut gray, &face_image, 0, 0);
+    let net = u
+        .network_detector()
+        .expect("the default uses the network detector");
+    let windows = network_windows_desheared(net, &gray, 40.0, face.k_measured);
+    let (strongest, logit) = windows.first().expect("a window on the face");
+    let (at, width) = proposal_eyes(strongest);
+    assert!(*logit > 0.0);
+    assert!(at.distance(eyes) < 0.25 * distance, "{at:?} {eyes:?}");
+    assert!((width / distance - 1.0).abs() < 0.2, "{width} {distance}");
+    assert!(
+        (strongest.view_k - face.k_measured).abs() < 0.1,
+        "{} {}",
+        strongest.view_k,
+        face.k_measured
+    );
+    assert_eq!(
+        network_windows_desheared(net, &gray, 40.0, 0.0),
+        network_windows(net, &gray, 40.0)
+    );
+}
+
+/// The pass over the de-sheared image looks for faces from half the smallest face found, on
+/// the first pass's pyramid levels (never above that half, never below the first pass's
+/// smallest face).
+#[test]
+fn the_de_sheared_pass_starts_on_the_first_pass_level_below_half_the_smallest_face() {
+    let step = 2f64.sqrt();
+    // Half of 200 is 100: levels 40, 56.6, 80, 113; 80 is the last at or below 100.
+    assert!((measured_view_min_width(40.0, 200.0, step) - 80.0).abs() < 1e-9);
+    // Exactly on a level.
+    assert!((measured_view_min_width(40.0, 160.0, step) - 80.0).abs() < 1e-9);
+    // A smallest face under twice the first pass's: its own smallest.
+    assert_eq!(measured_view_min_width(40.0, 60.0, step), 40.0);
+    // Never below the network's smallest face.
+    let floor = f64::from(MIN_NETWORK_FACE);
+    assert_eq!(measured_view_min_width(1.0, 10.0, step), floor);
 }
