@@ -265,6 +265,10 @@ impl Unshear {
     /// face that was not found from one that was found but gave no estimate). With the landmark
     /// network, boxes it finds no face in are left out (see the minimum face score).
     ///
+    /// The network detector (the default) runs once over the image and again over the image
+    /// de-sheared by the shear its faces measured (when that is 0.1 or more), each window
+    /// judged by the landmark network. With Viola-Jones:
+    ///
     /// The de-sheared retries (see [`Self::detect`]) also run when every face found in the image
     /// as it is gave no accepted estimate: a false detection, or a sheared face found but poorly
     /// measured, must not hide a face the retries would find. The views are searched in groups
