@@ -285,7 +285,7 @@ fn output_path(a: &CorrectArgs, input: &Input) -> Result<PathBuf> {
 /// `path` made absolute, its longest existing ancestor canonicalised (links and `..` resolved
 /// by the file system) and the rest cleaned lexically: two spellings of one output give the
 /// same result.
-pub(crate) fn normalise(path: &Path) -> PathBuf {
+fn normalise(path: &Path) -> PathBuf {
     let absolute = std::env::current_dir()
         .map(|d| d.join(path))
         .unwrap_or_else(|_| path.to_path_buf());
@@ -315,12 +315,29 @@ pub(crate) fn normalise(path: &Path) -> PathBuf {
     clean
 }
 
+/// What two outputs collide on: the [`normalise`]d path, in lower case where file systems are
+/// case-insensitive by default (macOS, Windows), where `A.jpg` and `a.jpg` are one file.
+pub(crate) fn output_key(path: &Path) -> PathBuf {
+    fold_case(
+        normalise(path),
+        cfg!(any(target_os = "macos", target_os = "windows")),
+    )
+}
+
+/// `path` in lower case when `fold` (a path that is not Unicode is kept as it is).
+fn fold_case(path: PathBuf, fold: bool) -> PathBuf {
+    match path.to_str() {
+        Some(s) if fold => PathBuf::from(s.to_lowercase()),
+        _ => path,
+    }
+}
+
 /// Decides every input's output before any work, in input order (the command line's, then each
 /// folder's walk): an input whose output another input earlier in that order already takes
 /// fails with an error naming both, and so does an input whose output cannot be decided. An
 /// output that is also the `--annotate` picture is a usage error.
 fn refuse_colliding_outputs(a: &CorrectArgs, inputs: Vec<Collected>) -> Vec<Collected> {
-    let annotate = a.annotate.as_deref().map(normalise);
+    let annotate = a.annotate.as_deref().map(output_key);
     let mut taken: HashMap<PathBuf, PathBuf> = HashMap::new();
     inputs
         .into_iter()
@@ -330,7 +347,7 @@ fn refuse_colliding_outputs(a: &CorrectArgs, inputs: Vec<Collected>) -> Vec<Coll
                 Ok(out) => out,
                 Err(e) => return Err((input.path, error_chain(&e))),
             };
-            let key = normalise(&out);
+            let key = output_key(&out);
             if annotate.as_ref() == Some(&key) {
                 usage_error(&format!(
                     "--annotate and the corrected image are both {}",
@@ -735,6 +752,17 @@ fn eval_recognition(a: EvalRecognitionArgs) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn outputs_differing_in_case_collide_only_where_case_is_folded() {
+        let (a, b) = (
+            PathBuf::from("/out/Face.JPG"),
+            PathBuf::from("/out/face.jpg"),
+        );
+        assert_eq!(fold_case(a.clone(), true), fold_case(b.clone(), true));
+        assert_ne!(fold_case(a.clone(), false), fold_case(b, false));
+        assert_eq!(fold_case(a.clone(), false), a);
+    }
 
     #[test]
     fn failure_messages_are_one_line_without_the_file_twice() {

@@ -22,7 +22,7 @@ use crate::ffmpeg::{PendingDecoder, PendingEncoder, TempOutput, Tools};
 use crate::models::load_models;
 
 use crate::report::{face, r4, JsonFace};
-use crate::{create_parent, interrupt, normalise, usage_error};
+use crate::{create_parent, interrupt, output_key, usage_error};
 use unshear::imageio::WriteOptions;
 use unshear::video::ffmpeg::{
     decode_args, even_size, y4m_target, Capabilities, EncodePlan, EncodeSettings, Probe,
@@ -757,9 +757,9 @@ fn frame_rate_fraction(fps: f64) -> (u32, u32) {
 }
 
 /// Whether `a` and `b` name the same file, existing or not (compared as `correct` compares
-/// outputs, [`normalise`]).
+/// outputs, [`output_key`]).
 fn same_target(a: &Path, b: &Path) -> bool {
-    same_path(a, b) || normalise(a) == normalise(b)
+    same_path(a, b) || output_key(a) == output_key(b)
 }
 
 /// Refuses an output that is an input or exists without `--force`, before anything is
