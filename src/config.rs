@@ -60,9 +60,10 @@ pub enum FaceSearch {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Detector {
-    /// One pass of the face proposal network (a small convolutional window classifier trained
-    /// on sheared and rolled faces) over an image pyramid, each window judged by the landmark
-    /// network's face score. Needs the network locator: with the filters, which cannot tell a
+    /// The face proposal network (a small convolutional window classifier trained on sheared
+    /// and rolled faces) over an image pyramid, each window judged by the landmark network's
+    /// face score; once more over the image de-sheared by the shear the faces measure, when
+    /// that is 0.1 or more. Needs the network locator: with the filters, which cannot tell a
     /// false window, the Viola-Jones search is used.
     #[default]
     Network,

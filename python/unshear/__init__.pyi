@@ -132,8 +132,9 @@ class Unshear:
 
     The settings mirror the CLI's options, with the CLI's defaults:
 
-    * ``detector``: what finds the faces: ``"network"`` (one pass of the built-in detector
-      trained on sheared and rolled faces) or ``"viola-jones"`` (the paper's cascade)
+    * ``detector``: what finds the faces: ``"network"`` (the built-in detector trained on
+      sheared and rolled faces: one pass, and a second over the image de-sheared by the shear
+      its faces measure) or ``"viola-jones"`` (the paper's cascade)
       (``--detector``; default ``None``: the network, or Viola-Jones when ``search`` or the
       filters ask for it).
     * ``locator``: what locates the eyes, nose and mouth: the landmark ``"network"`` (default)

@@ -138,11 +138,12 @@ pub struct ModelArgs {
     /// No turned views for rolled heads (the de-sheared views are still searched).
     #[arg(help_heading = "Face search", hide_short_help = true, long)]
     pub no_roll_search: bool,
-    /// What finds the faces: `network` (one pass of the built-in detector trained on sheared
-    /// and rolled faces) or `viola-jones` (the paper's cascade; with --thorough in every view).
+    /// What finds the faces: `network` (the built-in detector trained on sheared and rolled
+    /// faces) or `viola-jones` (the paper's cascade; with --thorough in every view).
     ///
     /// `network`: the face proposal network over an image pyramid, each window judged by the
-    /// landmark network (needs `--locator network`). `viola-jones`: the paper's cascade on the
+    /// landmark network, and again over the image de-sheared by the shear the faces measure
+    /// when that is 0.1 or more (needs `--locator network`). `viola-jones`: the paper's cascade on the
     /// image as it is, and de-sheared and turned views only when it shows no trusted face;
     /// with --thorough in every view of every image, about 20 times slower than `network`
     /// (docs/performance.md) [default: network; viola-jones with --locator filters, --quick
