@@ -68,14 +68,25 @@ use search::{
 /// first pass all the same.
 pub(crate) const MEASURED_VIEW_MIN_FACE_RATIO: f64 = 0.5;
 
-/// The smallest face (box width) the pass over the image de-sheared by the measured shear
-/// looks for when the first pass looked from `min_width` (at least [`MIN_NETWORK_FACE`]) on
-/// pyramid levels `step` apart and the smallest face found is `smallest` wide: the first
-/// pass's level holding [`MEASURED_VIEW_MIN_FACE_RATIO`] times `smallest`, so that both passes
-/// see faces at the same scales (a borderline face's window comes and goes with them).
-pub(crate) fn measured_view_min_width(min_width: f64, smallest: f64, step: f64) -> f64 {
+/// The widest image (columns) whose faces the pass over the image de-sheared by the measured
+/// shear looks for from the first pass's smallest face: on a wider image it looks from the
+/// face that small in the image shrunk to this width (from about 83 px on a 4000x3000 photo),
+/// so that it costs at most about what the first pass costs on a 1920x1080 frame. A second
+/// pass over all of a 12-megapixel photo's scales had doubled its search (0.2 s more).
+pub(crate) const MEASURED_VIEW_FULL_COLUMNS: f64 = 1920.0;
+
+/// The smallest face (box width) the pass over an image `width` columns wide, de-sheared by
+/// the measured shear, looks for when the first pass looked from `min_width` (at least
+/// [`MIN_NETWORK_FACE`]) on pyramid levels `step` apart and the smallest face found is
+/// `smallest` wide: [`MEASURED_VIEW_MIN_FACE_RATIO`] times `smallest` (and at least the bound
+/// of [`MEASURED_VIEW_FULL_COLUMNS`]), taken down to the first pass's level holding it, so
+/// that both passes see faces at the same scales (a borderline face's window comes and goes
+/// with them).
+pub(crate) fn measured_view_min_width(min_width: f64, smallest: f64, width: u32, step: f64) -> f64 {
     let min_width = min_width.max(f64::from(MIN_NETWORK_FACE));
-    let levels = (MEASURED_VIEW_MIN_FACE_RATIO * smallest / min_width).ln() / step.ln();
+    let wide = (f64::from(width) / MEASURED_VIEW_FULL_COLUMNS).max(1.0);
+    let wanted = (MEASURED_VIEW_MIN_FACE_RATIO * smallest).max(min_width * wide);
+    let levels = (wanted / min_width).ln() / step.ln();
     // The tolerance keeps a face exactly on a level on it (the logarithms' rounding).
     min_width * step.powf((levels + 1e-9).floor().max(0.0))
 }
@@ -494,7 +505,7 @@ impl Unshear {
             .fold(f64::INFINITY, f64::min)
             / EYE_DISTANCE_PER_BOX_WIDTH;
         let step = net.default_params().scale_step;
-        let min_width = measured_view_min_width(min_width, smallest, step);
+        let min_width = measured_view_min_width(min_width, smallest, gray.width(), step);
         let windows = network_windows_desheared(net, gray, min_width, k);
         self.judge_windows(gray, windows, Some(k), budget, found);
     }

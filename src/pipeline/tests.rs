@@ -839,17 +839,22 @@ fn windows_of_a_de_sheared_view_land_on_the_face_in_the_input() {
 
 /// The pass over the de-sheared image looks for faces from half the smallest face found, on
 /// the first pass's pyramid levels (never above that half, never below the first pass's
-/// smallest face).
+/// smallest face), and on an image wider than 1920 columns from no smaller a face than in the
+/// image shrunk to 1920.
 #[test]
 fn the_de_sheared_pass_starts_on_the_first_pass_level_below_half_the_smallest_face() {
     let step = 2f64.sqrt();
     // Half of 200 is 100: levels 40, 56.6, 80, 113; 80 is the last at or below 100.
-    assert!((measured_view_min_width(40.0, 200.0, step) - 80.0).abs() < 1e-9);
+    assert!((measured_view_min_width(40.0, 200.0, 1920, step) - 80.0).abs() < 1e-9);
     // Exactly on a level.
-    assert!((measured_view_min_width(40.0, 160.0, step) - 80.0).abs() < 1e-9);
+    assert!((measured_view_min_width(40.0, 160.0, 640, step) - 80.0).abs() < 1e-9);
     // A smallest face under twice the first pass's: its own smallest.
-    assert_eq!(measured_view_min_width(40.0, 60.0, step), 40.0);
+    assert_eq!(measured_view_min_width(40.0, 60.0, 1920, step), 40.0);
     // Never below the network's smallest face.
     let floor = f64::from(MIN_NETWORK_FACE);
-    assert_eq!(measured_view_min_width(1.0, 10.0, step), floor);
+    assert_eq!(measured_view_min_width(1.0, 10.0, 640, step), floor);
+    // 4000 columns: from 83 px at least (the level at 80), whatever the faces found.
+    assert!((measured_view_min_width(40.0, 60.0, 4000, step) - 80.0).abs() < 1e-9);
+    // A large face found there still sets the bound: half of 400, down to the level at 160.
+    assert!((measured_view_min_width(40.0, 400.0, 4000, step) - 160.0).abs() < 1e-9);
 }
