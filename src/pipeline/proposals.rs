@@ -7,12 +7,11 @@ use image::GrayImage;
 use super::combine::{holds_eyes, smaller_eye_distance};
 use super::face::MIN_FACE_SCORE;
 use super::report::FaceReport;
-use super::search::{view_is_bounded, Detection, NEAR_MISS_MIN_FACE_SCORE};
+use super::search::{desheared_view, Detection, NEAR_MISS_MIN_FACE_SCORE};
 use crate::config::{DEFAULT_MIN_CONFIDENCE, MIN_NETWORK_FACE};
 use crate::detect::boxes::{box_around_eyes, eyes_in_box, EYE_DISTANCE_PER_BOX_WIDTH};
 use crate::detect::{ProposalNet, ProposalParams};
-use crate::geometry::{Point, Rect, Shear};
-use crate::warp::{self, Canvas, Interpolation};
+use crate::geometry::{Point, Rect};
 
 /// How far (in the window's eye distances) the eyes the network located from a proposal
 /// window may be from where the window expects them, for the face to count as the window's.
@@ -202,8 +201,8 @@ pub(crate) fn network_windows(
 /// [`network_windows`] in `gray` de-sheared by `k` about its middle row (on a canvas wide
 /// enough to lose nothing), moved back to `gray`: each window's shear is `k` plus the shear it
 /// regressed in the view. A face sheared by about `k` is upright in the view, where the
-/// detector is surest of it. None when the view would be mostly padding
-/// ([`view_is_bounded`]) or cannot be made; `k = 0` is the image as it is.
+/// detector is surest of it. None when the view would be mostly padding or cannot be made
+/// ([`desheared_view`]); `k = 0` is the image as it is.
 pub(crate) fn network_windows_desheared(
     net: &ProposalNet,
     gray: &GrayImage,
@@ -213,20 +212,14 @@ pub(crate) fn network_windows_desheared(
     if k == 0.0 {
         return network_windows(net, gray, min_width);
     }
-    if !view_is_bounded(gray.width(), gray.height(), k, 0.0) {
-        return Vec::new();
-    }
-    let shear = Shear::about_middle(k, gray.height());
-    let Ok((view, placement)) =
-        warp::try_remove_shear_gray(gray, shear, Interpolation::Linear, Canvas::Expand)
-    else {
+    let Some((view, back)) = desheared_view(gray, k, 0.0) else {
         return Vec::new();
     };
     network_windows(net, &view, min_width)
         .into_iter()
         .map(|(d, logit)| {
             let (eyes, eye_distance) = proposal_eyes(&d);
-            let eyes = shear.apply(placement.to_frame(eyes));
+            let eyes = back.to_input(eyes);
             let moved = Detection {
                 view_k: d.view_k + k,
                 view_roll: d.view_roll,

@@ -364,20 +364,8 @@ impl Unshear {
         k: f64,
         roll: f64,
     ) -> Vec<Detection> {
-        if !view_is_bounded(gray.width(), gray.height(), k, roll) {
-            // Mostly padding (see MAX_VIEW_PIXELS_RATIO): not searched.
+        let Some((view, back)) = desheared_view(gray, k, roll) else {
             return Vec::new();
-        }
-        let shear = Shear::about_middle(k, gray.height());
-        // No shear: the image itself (the warp would be an exact copy, with the default
-        // placement: `warp`'s test `zero_shear_is_identity_for_every_variant`).
-        let (view, placement) = if k == 0.0 {
-            (Cow::Borrowed(gray), Placement::default())
-        } else {
-            match warp::try_remove_shear_gray(gray, shear, Interpolation::Linear, Canvas::Expand) {
-                Ok((view, placement)) => (Cow::Owned(view), placement),
-                Err(_) => return Vec::new(),
-            }
         };
         let (view, rotation) = if roll == 0.0 {
             (view, None)
@@ -403,7 +391,7 @@ impl Unshear {
                     b.y + eyes_in_box.1 * b.height,
                 );
                 let desheared = rotation.map_or(in_view, |r| r.to_input(in_view));
-                let eyes = shear.apply(placement.to_frame(desheared));
+                let eyes = back.to_input(desheared);
                 Detection {
                     face_box: box_around_eyes(eyes, b.width, b.height, roll),
                     view_k: k,
@@ -465,6 +453,44 @@ impl Unshear {
             .filter(|d| found.iter().all(|(b, _)| b.iou(&d.face_box) < 0.3))
             .collect()
     }
+}
+
+/// Where a point of a de-sheared view ([`desheared_view`]) is in the image it was made from.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct FromView {
+    shear: Shear,
+    placement: Placement,
+}
+
+impl FromView {
+    /// `p` of the view, in the input image.
+    pub(crate) fn to_input(self, p: Point) -> Point {
+        self.shear.apply(self.placement.to_frame(p))
+    }
+}
+
+/// `gray` de-sheared by `k` about its middle row, on a canvas wide enough to lose nothing, and
+/// the map from it back to `gray`; `None` when the view, turned by `roll` after, would be
+/// mostly padding (see [`MAX_VIEW_PIXELS_RATIO`]) or cannot be made.
+pub(crate) fn desheared_view(
+    gray: &GrayImage,
+    k: f64,
+    roll: f64,
+) -> Option<(Cow<'_, GrayImage>, FromView)> {
+    if !view_is_bounded(gray.width(), gray.height(), k, roll) {
+        return None;
+    }
+    let shear = Shear::about_middle(k, gray.height());
+    // No shear: the image itself (the warp would be an exact copy, with the default
+    // placement: `warp`'s test `zero_shear_is_identity_for_every_variant`).
+    let (view, placement) = if k == 0.0 {
+        (Cow::Borrowed(gray), Placement::default())
+    } else {
+        let (view, placement) =
+            warp::try_remove_shear_gray(gray, shear, Interpolation::Linear, Canvas::Expand).ok()?;
+        (Cow::Owned(view), placement)
+    };
+    Some((view, FromView { shear, placement }))
 }
 
 /// `detector`'s boxes in `gray` with their neighbour counts, its near misses (none unless its

@@ -143,9 +143,10 @@ pub struct ModelArgs {
     ///
     /// `network`: the face proposal network over an image pyramid, each window judged by the
     /// landmark network, and again over the image de-sheared by the shear the faces measure
-    /// when that is 0.1 or more (needs `--locator network`). `viola-jones`: the paper's cascade on the
-    /// image as it is, and de-sheared and turned views only when it shows no trusted face;
-    /// with --thorough in every view of every image, about 20 times slower than `network`
+    /// when that is 0.1 or more (needs `--locator network`). `viola-jones`: the paper's
+    /// cascade on the image as it is, and de-sheared and turned views only when it shows no
+    /// trusted face; with --thorough in every view of every image, about 20 times slower than
+    /// `network`
     /// (docs/performance.md) [default: network; viola-jones with --locator filters, --quick
     /// or --thorough].
     #[arg(
