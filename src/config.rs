@@ -74,6 +74,14 @@ pub enum Detector {
 /// Default smallest face (box width, pixels) the network detector looks for.
 pub const DEFAULT_MIN_FACE: u32 = 40;
 
+/// Most refinement passes [`Config::refinements`] may ask for: each locates the features again,
+/// and a few settle the estimate; more would only make a run that cannot be stopped.
+pub const MAX_REFINEMENTS: usize = 10;
+
+/// Smallest Viola-Jones scale step (`scaleFactor`) [`Config::validate`] takes: the pyramid's
+/// levels grow as 1 / ln(step), so a step just above 1 would search for hours.
+pub const MIN_SCALE_FACTOR: f64 = 1.01;
+
 /// The smallest face (box width, pixels) the network detector can see: its window's own scale.
 pub const MIN_NETWORK_FACE: u32 = 24;
 
@@ -240,10 +248,19 @@ impl Config {
         if !(non_negative(b.shear_tolerance) && non_negative(b.roll_tolerance)) {
             return bad("the network budget's tolerances must be finite and >= 0".into());
         }
-        let d = &self.cascade;
-        if !(d.scale_factor.is_finite() && d.scale_factor > 1.0 && d.scale_factor <= 2.0) {
+        if self.refinements > MAX_REFINEMENTS {
             return bad(format!(
-                "scale factor {} must be above 1 and at most 2",
+                "{} refinement passes: at most {MAX_REFINEMENTS}",
+                self.refinements
+            ));
+        }
+        let d = &self.cascade;
+        if !(d.scale_factor.is_finite()
+            && d.scale_factor >= MIN_SCALE_FACTOR
+            && d.scale_factor <= 2.0)
+        {
+            return bad(format!(
+                "scale factor {} must be at least {MIN_SCALE_FACTOR} and at most 2",
                 d.scale_factor
             ));
         }
@@ -327,6 +344,17 @@ mod tests {
                     scale_factor: 1.0,
                     ..DetectorParams::default()
                 },
+                ..Config::default()
+            },
+            Config {
+                cascade: DetectorParams {
+                    scale_factor: 1.000_000_1,
+                    ..DetectorParams::default()
+                },
+                ..Config::default()
+            },
+            Config {
+                refinements: MAX_REFINEMENTS + 1,
                 ..Config::default()
             },
             Config {

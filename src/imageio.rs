@@ -330,8 +330,10 @@ fn is_gray(img: &DynamicImage) -> bool {
 /// * PNG: everything up to 16 bits is kept; float → 16-bit.
 /// * PGM: `L8` (colour is converted to luma); PPM: `Rgb8`; PNM: PGM for grey, else PPM (the
 ///   `image` PNM encoder writes 8-bit samples only).
-/// * BMP, WebP (lossless): 8-bit, alpha kept.
-/// * TIFF: everything kept except grey float (→ 16-bit grey); `La`-16 is stored as `Rgba16`.
+/// * WebP (lossless): 8-bit, alpha kept. BMP: 8-bit, alpha kept; grey with alpha as `Rgba8`
+///   (the BMP encoder drops a grey image's alpha).
+/// * TIFF: everything kept except grey float (→ 16-bit grey); grey with alpha is stored as
+///   `Rgba8`/`Rgba16` (the TIFF encoder has no grey-with-alpha).
 ///
 /// Borrows `img` when it can be written as it is (no copy of a large photo just to encode it).
 fn convert_for(img: &DynamicImage, format: OutFormat) -> Cow<'_, DynamicImage> {
@@ -368,20 +370,22 @@ fn convert_for(img: &DynamicImage, format: OutFormat) -> Cow<'_, DynamicImage> {
             (true, false) => keep(matches!(img, D::ImageLuma8(_)), |i| {
                 D::ImageLuma8(i.to_luma8())
             }),
-            (true, true) => keep(matches!(img, D::ImageLumaA8(_)), |i| {
-                D::ImageLumaA8(i.to_luma_alpha8())
+            (true, true) if format == OutFormat::WebP => {
+                keep(matches!(img, D::ImageLumaA8(_)), |i| {
+                    D::ImageLumaA8(i.to_luma_alpha8())
+                })
+            }
+            (_, true) => keep(matches!(img, D::ImageRgba8(_)), |i| {
+                D::ImageRgba8(i.to_rgba8())
             }),
             (false, false) => keep(matches!(img, D::ImageRgb8(_)), |i| {
                 D::ImageRgb8(i.to_rgb8())
             }),
-            (false, true) => keep(matches!(img, D::ImageRgba8(_)), |i| {
-                D::ImageRgba8(i.to_rgba8())
-            }),
         },
         OutFormat::Tiff => match img {
+            D::ImageLumaA8(_) => Cow::Owned(D::ImageRgba8(img.to_rgba8())),
             D::ImageLumaA16(_) => Cow::Owned(D::ImageRgba16(img.to_rgba16())),
             D::ImageLuma8(_)
-            | D::ImageLumaA8(_)
             | D::ImageRgb8(_)
             | D::ImageRgba8(_)
             | D::ImageLuma16(_)
@@ -716,6 +720,20 @@ mod tests {
                 .to_luma_alpha8(),
             la.to_luma_alpha8()
         );
+    }
+
+    #[test]
+    fn grey_with_alpha_keeps_its_alpha_in_tiff_and_bmp() {
+        let dir = tempfile::tempdir().unwrap();
+        let la = DynamicImage::ImageLumaA8(ImageBuffer::from_fn(4, 4, |x, y| {
+            LumaA([(x * 60) as u8, (y * 80) as u8])
+        }));
+        for ext in ["tif", "bmp"] {
+            let path = dir.path().join(format!("la.{ext}"));
+            write_image_atomic(&la, &path, WriteOptions::default()).unwrap();
+            let back = read_image(&path, DEFAULT_MAX_PIXELS).unwrap();
+            assert_eq!(back.to_luma_alpha8(), la.to_luma_alpha8(), "{ext}");
+        }
     }
 
     /// A JPEG with an EXIF APP1 segment carrying `orientation`, inserted right after SOI.

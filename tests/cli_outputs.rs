@@ -156,6 +156,91 @@ fn non_utf8_names_keep_their_bytes() {
         .success();
     assert!(name(b"a\xff.unshear.jpeg").is_file());
     assert!(name(b"a\xfe.unshear.jpeg").is_file());
+    // A folder run skips those outputs too (their stems end in `.unshear` as bytes): two
+    // inputs, not four, and no `.unshear.unshear` file.
+    let out = unshear()
+        .arg("correct")
+        .arg(dir.path())
+        .arg("--json")
+        .arg("--force")
+        .assert()
+        .success()
+        .get_output()
+        .clone();
+    assert_eq!(json_lines(&out.stdout).len(), 2, "{}", stderr_of(&out));
+    assert!(!name(b"a\xff.unshear.unshear.jpeg").exists());
+}
+
+/// An input whose name has no extension, or one that is only read (`.pbm`), or a pipe, gets a
+/// PNG output, with or without `--out-dir`, instead of failing for its output's format.
+#[cfg(target_os = "linux")]
+#[test]
+fn inputs_without_a_written_extension_get_png_outputs() {
+    let dir = tempfile::tempdir().expect("temp");
+    let noext = dir.path().join("in").join("noext");
+    copy("subject01.normal.jpeg", &noext);
+    let face = image::open(fixture("subject01.normal.jpeg")).expect("open");
+    let pbm = dir.path().join("in").join("face.pbm");
+    face.to_luma8().save(&pbm).expect("pbm");
+    for input in [&noext, &pbm] {
+        unshear()
+            .arg("correct")
+            .arg(input)
+            .args(["--k", "0.2"])
+            .assert()
+            .success();
+    }
+    assert!(dir.path().join("in/noext.unshear.png").is_file());
+    assert!(dir.path().join("in/face.unshear.png").is_file());
+    let out_dir = dir.path().join("out");
+    unshear()
+        .arg("correct")
+        .arg(&noext)
+        .arg(&pbm)
+        .arg("--out-dir")
+        .arg(&out_dir)
+        .args(["--k", "0.2"])
+        .assert()
+        .success();
+    assert!(out_dir.join("noext.png").is_file());
+    assert!(out_dir.join("face.png").is_file());
+    // A pipe with --out-dir, as its error message offers.
+    let link = dir.path().join("stdin");
+    std::os::unix::fs::symlink("/dev/stdin", &link).expect("link");
+    unshear()
+        .arg("correct")
+        .arg(&link)
+        .arg("--out-dir")
+        .arg(&out_dir)
+        .write_stdin(std::fs::read(fixture("subject01.normal.jpeg")).expect("read"))
+        .assert()
+        .success();
+    assert!(out_dir.join("stdin.png").is_file());
+}
+
+/// A run refused because its output exists writes no annotation either: every output is
+/// checked before any work.
+#[test]
+fn an_existing_output_leaves_the_annotation_unwritten() {
+    let dir = tempfile::tempdir().expect("temp");
+    let input = dir.path().join("face.jpeg");
+    copy("subject01.normal.jpeg", &input);
+    let (out, note) = (dir.path().join("out.png"), dir.path().join("note.png"));
+    std::fs::write(&out, b"kept").expect("write");
+    let run = unshear()
+        .arg("correct")
+        .arg(&input)
+        .arg("-o")
+        .arg(&out)
+        .arg("--annotate")
+        .arg(&note)
+        .assert()
+        .code(1)
+        .get_output()
+        .clone();
+    assert!(stderr_of(&run).contains("--force"), "{}", stderr_of(&run));
+    assert!(!note.exists());
+    assert_eq!(std::fs::read(&out).expect("read"), b"kept");
 }
 
 /// Negative numbers reach the range checks (exit 2 with the range named) instead of being

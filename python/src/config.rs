@@ -75,7 +75,6 @@ const MAX_CROPS: i128 = 64;
 /// The largest values of the unsigned types, as [`integer`]'s bounds.
 pub const U32_MAX: i128 = u32::MAX as i128;
 pub const U64_MAX: i128 = u64::MAX as i128;
-pub const USIZE_MAX: i128 = usize::MAX as i128;
 
 /// The keyword names, in the order `Unshear.config` lists them.
 pub const KEYS: [&str; 16] = [
@@ -267,7 +266,10 @@ impl PyConfig {
                 "search" => c.search = Some(choice(&key, &value, &SEARCHES)?),
                 "min_confidence" => c.min_confidence = real(&key, &value)?,
                 "max_crops" => c.max_crops = Some(integer(&key, &value, 1, MAX_CROPS)?),
-                "refinements" => c.refinements = integer(&key, &value, 0, USIZE_MAX)?,
+                "refinements" => {
+                    c.refinements =
+                        integer(&key, &value, 0, unshear::config::MAX_REFINEMENTS as i128)?
+                }
                 "shear_model" => c.shear_model = Some(choice(&key, &value, &SHEAR_MODELS)?),
                 "filter_type" => c.filter_type = choice(&key, &value, &FILTER_TYPES)?,
                 "min_face" => c.min_face = Some(integer(&key, &value, 0, U32_MAX)?),

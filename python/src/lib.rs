@@ -15,7 +15,7 @@ use std::sync::{Arc, Mutex};
 
 use pyo3::exceptions::{
     PyFileExistsError, PyFileNotFoundError, PyIsADirectoryError, PyOSError, PyPermissionError,
-    PyRuntimeError, PyValueError,
+    PyRuntimeError, PyTypeError, PyValueError,
 };
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -98,25 +98,29 @@ struct PyUnshear {
     inner: unshear::Unshear,
     config: PyConfig,
     max_pixels: u64,
-    /// Thread pools of `estimate_many(threads=N)`, by size, made on first use.
-    pools: Mutex<Vec<(usize, Arc<rayon::ThreadPool>)>>,
+    /// The thread pool of the last `estimate_many(threads=N)`, with its size: kept for the
+    /// next call with the same `N`, replaced (its threads ended) by one with another, so
+    /// calls with ever new sizes do not pile up threads.
+    pool: Mutex<Option<(usize, Arc<rayon::ThreadPool>)>>,
 }
 
 impl PyUnshear {
     fn pool(&self, threads: usize) -> PyResult<Arc<rayon::ThreadPool>> {
-        let mut pools = self
-            .pools
+        let mut cached = self
+            .pool
             .lock()
             .map_err(|_| PyRuntimeError::new_err("thread pool cache poisoned"))?;
-        if let Some((_, pool)) = pools.iter().find(|(n, _)| *n == threads) {
-            return Ok(pool.clone());
+        if let Some((n, pool)) = cached.as_ref() {
+            if *n == threads {
+                return Ok(pool.clone());
+            }
         }
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
             .map_err(|e| PyRuntimeError::new_err(format!("starting {threads} threads: {e}")))?;
         let pool = Arc::new(pool);
-        pools.push((threads, pool.clone()));
+        *cached = Some((threads, pool.clone()));
         Ok(pool)
     }
 
@@ -140,7 +144,7 @@ impl PyUnshear {
             inner,
             config: cfg,
             max_pixels,
-            pools: Mutex::new(Vec::new()),
+            pool: Mutex::new(None),
         })
     }
 
@@ -173,6 +177,18 @@ impl PyUnshear {
         #[pyo3(from_py_with = args::threads)] threads: Option<usize>,
         bgr: bool,
     ) -> PyResult<Vec<Report>> {
+        let ndim = images
+            .getattr("ndim")
+            .ok()
+            .and_then(|n| n.extract::<usize>().ok());
+        if ndim.is_some_and(|n| n < 4) {
+            // One image is iterable by rows, which would be read as many one-row images (a
+            // 4-D array is a stack of images, as Ray Data hands them over).
+            return Err(PyTypeError::new_err(
+                "estimate_many takes a list (or any iterable, or a 4-D stack) of images, not \
+                 one image; use estimate for one image",
+            ));
+        }
         let pool = threads.map(|n| self.pool(n)).transpose()?;
         let inputs: Vec<DynamicImage> = images
             .try_iter()?
@@ -241,14 +257,12 @@ impl PyUnshear {
                     height: image.height(),
                 },
             };
-            let nothing = match options.region {
-                Region::Image => options.k.is_none() && report.k.is_none(),
-                Region::Face => report.faces.is_empty(),
-            };
-            if nothing {
-                return Err(NoFaceError::new_err(
-                    "no face found with an accepted estimate; give k= to correct anyway",
-                ));
+            if !options.changes(&report) {
+                return Err(NoFaceError::new_err(if options.k.is_some() {
+                    "no face found: a face-region correction needs a detected face"
+                } else {
+                    "no face found with an accepted estimate; give k= to correct anyway"
+                }));
             }
             self.inner
                 .correct(&image, &report, &options)

@@ -100,6 +100,10 @@ def test_refused_estimates_keep_their_measurement(face: np.ndarray) -> None:
     assert abs(report.faces[0].k_measured - 0.3) < 0.05
     with pytest.raises(unshear.NoFaceError):
         strict.correct(face)
+    # Face regions too: every face refused leaves nothing to correct, not the image unchanged.
+    with pytest.raises(unshear.NoFaceError, match="accepted estimate"):
+        strict.correct(face, region="face")
+    assert not np.array_equal(strict.correct(face, 0.3, region="face"), face)
 
 
 def test_defaults_are_the_clis() -> None:
@@ -165,7 +169,8 @@ def test_every_setting_round_trips() -> None:
         ({"max_crops": 0}, ValueError, "1 to 64"),
         ({"max_crops": -1}, ValueError, "max_crops must be 1 to 64, got -1"),
         ({"max_crops": 2.5}, TypeError, "max_crops must be an integer"),
-        ({"scale_factor": 1.0}, ValueError, "above 1"),
+        ({"scale_factor": 1.0}, ValueError, "at least 1.01"),
+        ({"scale_factor": 1.000001}, ValueError, "at least 1.01"),
         ({"proposals": 1}, TypeError, "True or False"),
         ({"shear_hypotheses": "0.1"}, TypeError, "sequence of numbers"),
         ({"shear_hypotheses": [3.0]}, ValueError, "between -2 and 2"),

@@ -17,7 +17,6 @@ import unshear
 
 U32 = 2**32 - 1
 U64 = 2**64 - 1
-USIZE = 2**64 - 1  # the 64-bit platforms the wheels are built for
 
 Call = Callable[[unshear.Unshear, Path, Any], object]
 IMAGE = np.zeros((8, 8, 3), np.uint8)
@@ -36,7 +35,7 @@ def read(max_pixels: Any) -> None:
 # Every integer the API takes: (name, how to pass it, lowest, highest accepted).
 INTEGERS: list[tuple[str, Call, int, int]] = [
     ("max_crops", lambda u, p, v: unshear.Unshear(max_crops=v), 1, 64),
-    ("refinements", lambda u, p, v: unshear.Unshear(refinements=v), 0, USIZE),
+    ("refinements", lambda u, p, v: unshear.Unshear(refinements=v), 0, 10),
     ("min_face", lambda u, p, v: unshear.Unshear(min_face=v), 0, U32),
     ("min_neighbors", lambda u, p, v: unshear.Unshear(min_neighbors=v), 0, U32),
     ("max_pixels", lambda u, p, v: unshear.Unshear(max_pixels=v), 0, U64),
@@ -108,8 +107,8 @@ def test_integers_at_the_ends_of_their_range_are_taken(
     highest: int,
 ) -> None:
     ends = [lowest, np.int64(lowest)]  # numpy integers are integers
-    # The top of the range, where using it is quick (not 2**64 refinements, or 65535 threads).
-    if name not in ("refinements", "threads"):
+    # The top of the range, where using it is quick (not 65535 threads).
+    if name != "threads":
         ends.append(highest)
     for value in ends:
         call(quick, tmp_path / "out.jpg", value)
@@ -141,8 +140,8 @@ FLOATS: list[tuple[str, str, object, type, str]] = [
     ("Unshear", "min_confidence", -INF, ValueError, "outside 0 to 1"),
     ("Unshear", "min_confidence", 10**400, ValueError, "min_confidence must be a finite number"),
     ("Unshear", "min_confidence", True, TypeError, "min_confidence must be a number, got bool"),
-    ("Unshear", "scale_factor", NAN, ValueError, "above 1 and at most 2"),
-    ("Unshear", "scale_factor", INF, ValueError, "above 1 and at most 2"),
+    ("Unshear", "scale_factor", NAN, ValueError, "at least 1.01 and at most 2"),
+    ("Unshear", "scale_factor", INF, ValueError, "at least 1.01 and at most 2"),
     ("Unshear", "scale_factor", "1.2", TypeError, "scale_factor must be a number, got str"),
     ("Unshear", "shear_hypotheses", [0.1, NAN], ValueError, "between -2 and 2"),
     ("Unshear", "roll_hypotheses", [INF], ValueError, "between -90 and 90"),

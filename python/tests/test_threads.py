@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import os
 import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -75,6 +77,29 @@ def test_estimate_many_matches_estimate(quick: unshear.Unshear, batch: list[np.n
         quick.estimate_many([batch[0], batch[1].astype(np.float32)])
     with pytest.raises(TypeError):
         quick.estimate_many(5)  # type: ignore[arg-type]
+    # One image is not a batch of its rows.
+    with pytest.raises(TypeError, match="use estimate for one image"):
+        quick.estimate_many(batch[1])
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="needs Linux's /proc")
+def test_estimate_many_with_new_sizes_keeps_one_pool(
+    quick: unshear.Unshear, batch: list[np.ndarray]
+) -> None:
+    def threads() -> int:
+        return len(os.listdir("/proc/self/task"))
+
+    quick.estimate_many(batch[:1], threads=2)
+    before = threads()
+    for n in range(3, 12):
+        quick.estimate_many(batch[:1], threads=n)
+    # The last pool (11 threads) replaced the first (2); the others end (rayon's threads
+    # leave on their own once their pool is dropped: wait up to 5 s for them).
+    limit = before + 11 - 2
+    deadline = time.monotonic() + 5
+    while threads() > limit and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert threads() <= limit, (threads(), before)
 
 
 def test_video_correctors_in_threads(faces: list[np.ndarray]) -> None:

@@ -30,6 +30,11 @@ Image: TypeAlias = npt.NDArray[np.uint8] | npt.NDArray[np.uint16]
 """An image array: H x W (grey), or H x W x C with C = 1 (grey), 2 (grey + alpha), 3 (RGB, or
 BGR with ``bgr=True``) or 4 (RGBA / BGRA); ``uint8`` or ``uint16``; any strides."""
 
+ImageLike: TypeAlias = npt.NDArray[Any]
+"""What the functions take: any numpy array, so that OpenCV's images (typed ``MatLike``) and
+arrays of computed dtype pass a type checker; at run time it must be an :data:`Image`
+(``uint8`` or ``uint16``), or ``ValueError`` is raised."""
+
 PathLike: TypeAlias = str | os.PathLike[str]
 Point: TypeAlias = tuple[float, float]
 Detector: TypeAlias = Literal["network", "viola-jones"]
@@ -192,21 +197,21 @@ class Unshear:
     @property
     def max_pixels(self) -> int:
         """The largest image accepted, in pixels."""
-    def estimate(self, image: Image, *, bgr: bool = False) -> Report:
+    def estimate(self, image: ImageLike, *, bgr: bool = False) -> Report:
         """Finds the faces in ``image`` and estimates the shear from each.
 
         Raises ``ValueError`` for an array that is not an image (wrong dtype, shape or channel
         count, empty, over ``max_pixels``) and ``TypeError`` for a non-array.
         """
     def estimate_many(
-        self, images: Iterable[Image], *, threads: int | None = None, bgr: bool = False
+        self, images: Iterable[ImageLike], *, threads: int | None = None, bgr: bool = False
     ) -> list[Report]:
         """``estimate`` on every image, in parallel on ``threads`` threads (1 to 65535; default:
         one per core); the reports come back in the images' order. Every image is copied first,
         so memory grows with the batch."""
     def correct(
         self,
-        image: Image,
+        image: ImageLike,
         k: float | None = None,
         *,
         region: Region = "image",
@@ -314,7 +319,7 @@ class VideoCorrector:
     @property
     def smoothing_lag(self) -> int:
         """Each frame comes out this many pushes later."""
-    def push(self, frame: Image) -> list[Frame]:
+    def push(self, frame: ImageLike) -> list[Frame]:
         """Takes the next frame; returns the frame now due, corrected (zero or one)."""
     def finish(self) -> list[Frame]:
         """Ends the stream: every frame still held, corrected. Later pushes raise."""
@@ -327,7 +332,7 @@ def read(path: PathLike, *, bgr: bool = False, max_pixels: int = ...) -> Image:
 
 def write(
     path: PathLike,
-    image: Image,
+    image: ImageLike,
     *,
     bgr: bool = False,
     overwrite: bool = True,
@@ -339,7 +344,7 @@ def write(
     (1 to 100, else ``ValueError``) is the JPEG encoder's quality."""
 
 def distort(
-    image: Image,
+    image: ImageLike,
     k: float,
     *,
     pivot: float | None = None,

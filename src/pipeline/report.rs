@@ -171,3 +171,19 @@ pub struct CorrectOptions {
     /// Use this shear instead of the estimate (for the whole image, or every face).
     pub k: Option<f64>,
 }
+
+impl CorrectOptions {
+    /// Whether correcting with `report` changes anything: a shear is given, or the report has
+    /// an accepted estimate for the image (whole-image correction) or for a face (face
+    /// regions; a face region also needs a face found). Otherwise the image would come back
+    /// as it was, which callers report as "no face" rather than as a correction.
+    pub fn changes(&self, report: &ImageReport) -> bool {
+        match self.region {
+            Region::Image => self.k.is_some() || report.k.is_some(),
+            Region::Face => {
+                !report.faces.is_empty()
+                    && (self.k.is_some() || report.faces.iter().any(|f| f.k.is_some()))
+            }
+        }
+    }
+}

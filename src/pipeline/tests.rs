@@ -858,3 +858,32 @@ fn the_de_sheared_pass_starts_on_the_first_pass_level_below_half_the_smallest_fa
     // A large face found there still sets the bound: half of 400, down to the level at 160.
     assert!((measured_view_min_width(40.0, 400.0, 4000, step) - 160.0).abs() < 1e-9);
 }
+
+#[test]
+fn a_correction_changes_the_image_only_with_a_shear_to_apply() {
+    let report = |k: Option<f64>, faces: Vec<FaceReport>| ImageReport {
+        k,
+        faces,
+        faces_disagree: false,
+        warnings: Vec::new(),
+        width: 10,
+        height: 10,
+    };
+    let options = |region, k| CorrectOptions {
+        region,
+        k,
+        ..CorrectOptions::default()
+    };
+    let refused = report(None, vec![face(None, 0.1)]);
+    let accepted = report(Some(0.2), vec![face(Some(0.2), 0.9)]);
+    let empty = report(None, Vec::new());
+    for region in [Region::Image, Region::Face] {
+        assert!(!options(region, None).changes(&refused), "{region:?}");
+        assert!(!options(region, None).changes(&empty), "{region:?}");
+        assert!(options(region, None).changes(&accepted), "{region:?}");
+        assert!(options(region, Some(0.1)).changes(&refused), "{region:?}");
+    }
+    // A given shear corrects the whole image without a face, but face regions need one.
+    assert!(options(Region::Image, Some(0.1)).changes(&empty));
+    assert!(!options(Region::Face, Some(0.1)).changes(&empty));
+}

@@ -75,9 +75,11 @@ pub struct ModelArgs {
     )]
     pub network: Option<PathBuf>,
     /// Refuse images with more pixels than this (checked before decoding).
-    #[arg(allow_negative_numbers = true, help_heading = "Input and output", hide_short_help = true, long, value_name = "N", default_value_t = unshear::imageio::DEFAULT_MAX_PIXELS)]
+    #[arg(allow_negative_numbers = true, help_heading = "Input and output", hide_short_help = true, long, value_name = "N", default_value_t = unshear::imageio::DEFAULT_MAX_PIXELS,
+          value_parser = clap::value_parser!(u64).range(1..))]
     pub max_pixels: u64,
-    /// Refinement passes: locate the features again in the face de-sheared by the last estimate.
+    /// Refinement passes (at most 10): locate the features again in the face de-sheared by the
+    /// last estimate.
     #[arg(
         allow_negative_numbers = true,
         help_heading = "Correction",
@@ -215,7 +217,7 @@ pub struct ModelArgs {
         value_name = "N"
     )]
     pub min_neighbors: Option<u32>,
-    /// The detector's scale step (OpenCV's `scaleFactor`, above 1): smaller finds more faces
+    /// The detector's scale step (OpenCV's `scaleFactor`, 1.01 to 2): smaller finds more faces
     /// and takes longer [default: 1.1, as OpenCV].
     #[arg(
         allow_negative_numbers = true,
@@ -395,7 +397,8 @@ pub struct DistortArgs {
     #[arg(long)]
     pub force: bool,
     /// Refuse images with more pixels than this.
-    #[arg(allow_negative_numbers = true, long, value_name = "N", default_value_t = unshear::imageio::DEFAULT_MAX_PIXELS)]
+    #[arg(allow_negative_numbers = true, long, value_name = "N", default_value_t = unshear::imageio::DEFAULT_MAX_PIXELS,
+          value_parser = clap::value_parser!(u64).range(1..))]
     pub max_pixels: u64,
 }
 

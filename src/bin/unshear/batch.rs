@@ -141,10 +141,10 @@ fn is_image_name(p: &Path) -> bool {
         .extension()
         .and_then(|e| e.to_str())
         .is_some_and(|e| IMAGE_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()));
+    // Compared as bytes: a stem that is not UTF-8 (an old Latin-1 archive) is still ours.
     let own_output = p
         .file_stem()
-        .and_then(|s| s.to_str())
-        .is_some_and(|s| s.ends_with(".unshear"));
+        .is_some_and(|s| s.as_encoded_bytes().ends_with(b".unshear"));
     ext_ok && !own_output
 }
 

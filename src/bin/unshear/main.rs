@@ -24,12 +24,12 @@ use args::{
     Cli, Command, CorrectArgs, DistortArgs, EstimateArgs, EvalCommand, EvalFaces, EvalNostrilsArgs,
     EvalRecognitionArgs, EvalShearArgs, TrainArgs,
 };
-use batch::{collect_inputs, run_ordered, shard, Collected, Input};
+use batch::{collect_inputs, run_ordered, shard, Collected, Input, IMAGE_EXTENSIONS};
 use models::load_models;
 use report::JsonLine;
 use unshear::filters::FilterType;
 use unshear::imageio::{self, WriteOptions};
-use unshear::{Config, CorrectOptions, ImageReport, Refusal, Region, Shear, Unshear};
+use unshear::{Config, CorrectOptions, ImageReport, Refusal, Shear, Unshear};
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
@@ -274,12 +274,34 @@ fn output_path(a: &CorrectArgs, input: &Input) -> Result<PathBuf> {
             .and_then(|root| input.path.strip_prefix(root).ok())
             .map(Path::to_path_buf)
             .unwrap_or_else(|| PathBuf::from(name));
-        return Ok(dir.join(relative));
+        return Ok(written_as(dir.join(relative), None));
     }
-    let mut file = input.path.file_stem().unwrap_or(name).to_os_string();
-    file.push(".unshear.");
-    file.push(input.path.extension().unwrap_or("png".as_ref()));
-    Ok(input.path.with_file_name(file))
+    Ok(written_as(input.path.clone(), Some(".unshear")))
+}
+
+/// `path` with `tag` (if any) added before its extension, and the extension made one that is
+/// written: an input's own when it is, `.png` in place of one that is only read (`.pbm`, 1-bit)
+/// and after a name with none or another (a pipe, `photo.2024`). PNG keeps every image's
+/// channels and depth.
+fn written_as(path: PathBuf, tag: Option<&str>) -> PathBuf {
+    let Some(name) = path.file_name() else {
+        return path;
+    };
+    let ext = path.extension().and_then(|e| e.to_str());
+    let readable = ext.is_some_and(|e| IMAGE_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()));
+    let (mut file, ext) = match path.file_stem() {
+        Some(stem) if imageio::output_format_supported(&path) => (stem.to_os_string(), ext),
+        Some(stem) if readable => (stem.to_os_string(), Some("png")),
+        _ => (name.to_os_string(), Some("png")),
+    };
+    if let Some(tag) = tag {
+        file.push(tag);
+    }
+    if let Some(ext) = ext {
+        file.push(".");
+        file.push(ext);
+    }
+    path.with_file_name(file)
 }
 
 /// `path` made absolute, its longest existing ancestor canonicalised (links and `..` resolved
@@ -392,6 +414,18 @@ fn correct_one(
             out.display()
         );
     }
+    // Both outputs are checked before any work, so a refused one leaves the other unwritten.
+    if !a.force {
+        for path in std::iter::once(&out).chain(&a.annotate) {
+            if path.exists() {
+                let e = unshear::Error::Refused {
+                    path: path.clone(),
+                    reason: imageio::EXISTS.to_owned(),
+                };
+                bail!("{e}; use --force to replace it");
+            }
+        }
+    }
     let (img, metadata) = imageio::read_image_with_metadata(&input.path, a.model.max_pixels)?;
     let report = estimate_with_warnings(unshear, &img);
     if let Some(annotate) = &a.annotate {
@@ -413,14 +447,7 @@ fn correct_one(
         interpolation: a.interp.into(),
         k: a.k,
     };
-    let nothing_to_apply = match options.region {
-        Region::Image => options.k.is_none() && report.k.is_none(),
-        Region::Face => {
-            report.faces.is_empty()
-                || (options.k.is_none() && report.faces.iter().all(|f| f.k.is_none()))
-        }
-    };
-    if nothing_to_apply {
+    if !options.changes(&report) {
         return Ok(Corrected::NoFace(report));
     }
     let fixed = unshear.correct(&img, &report, &options)?;
