@@ -446,7 +446,7 @@ fn write_with_metadata(
 
 /// Whether `a` and `b` name the same existing file: equal canonical paths, or (on Unix) the same
 /// device and inode, which also catches hard links.
-fn same_file(a: &Path, b: &Path) -> bool {
+pub(crate) fn same_file(a: &Path, b: &Path) -> bool {
     if let (Ok(ca), Ok(cb)) = (a.canonicalize(), b.canonicalize()) {
         if ca == cb {
             return true;
@@ -548,8 +548,9 @@ pub fn write_atomic(
 static IN_PROGRESS: std::sync::Mutex<Option<Vec<PathBuf>>> =
     std::sync::Mutex::new(Some(Vec::new()));
 
-/// Keeps one temporary file listed in [`IN_PROGRESS`] for its lifetime.
-struct InProgress(PathBuf);
+/// Keeps one temporary file (or folder) listed in [`IN_PROGRESS`] for its lifetime.
+#[derive(Debug)]
+pub(crate) struct InProgress(PathBuf);
 
 impl InProgress {
     /// Creates the temporary file and lists it, under the lock, so that [`abandon_writes`] sees
@@ -558,6 +559,22 @@ impl InProgress {
         builder: &tempfile::Builder,
         dir: &Path,
     ) -> std::io::Result<(tempfile::NamedTempFile, Self)> {
+        Self::listing(|| builder.tempfile_in(dir), |t| t.path())
+    }
+
+    /// A new empty folder `.unshear-XXXXXX` in `parent`, listed as [`Self::create`] lists a
+    /// file ([`abandon_writes`] removes it with its contents); the folder itself is removed
+    /// when the returned `TempDir` is dropped.
+    pub(crate) fn create_dir(parent: &Path) -> std::io::Result<(tempfile::TempDir, Self)> {
+        let builder = tempfile::Builder::new().prefix(".unshear-").clone();
+        Self::listing(|| builder.tempdir_in(parent), |t| t.path())
+    }
+
+    /// Makes something temporary with `make` and lists its `path`, under the lock.
+    fn listing<T>(
+        make: impl FnOnce() -> std::io::Result<T>,
+        path: impl FnOnce(&T) -> &Path,
+    ) -> std::io::Result<(T, Self)> {
         let mut list = IN_PROGRESS
             .lock()
             .map_err(|_| std::io::Error::other("a writer thread panicked"))?;
@@ -567,10 +584,10 @@ impl InProgress {
                 "the process is stopping",
             ));
         };
-        let tmp = builder.tempfile_in(dir)?;
-        list.push(tmp.path().to_path_buf());
-        let listed = Self(tmp.path().to_path_buf());
-        Ok((tmp, listed))
+        let made = make()?;
+        let listed = path(&made).to_path_buf();
+        list.push(listed.clone());
+        Ok((made, Self(listed)))
     }
 }
 
@@ -601,7 +618,7 @@ pub fn abandon_writes() -> usize {
     list.take()
         .unwrap_or_default()
         .into_iter()
-        .filter(|p| std::fs::remove_file(p).is_ok())
+        .filter(|p| std::fs::remove_file(p).is_ok() || std::fs::remove_dir_all(p).is_ok())
         .count()
 }
 

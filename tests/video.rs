@@ -616,3 +616,79 @@ fn json_file_is_written_whole_or_not_at_all() {
     let text = std::fs::read_to_string(&json).expect("written");
     assert_eq!(text.lines().count(), frames.len());
 }
+
+/// A frame folder appears whole or not at all: a clash found part-way (a frame file already
+/// there, not the first) or a stream cut in a frame leaves no frame of the run; `--json` inside
+/// the folder is a usage error.
+#[test]
+fn frame_folders_are_written_whole_or_not_at_all() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let frames: Vec<_> = clip().into_iter().take(4).collect();
+    let bytes = y4m_bytes(&frames);
+    let clip_path = dir.path().join("clip.y4m");
+    std::fs::write(&clip_path, &bytes).expect("write clip");
+    let unshear = || Command::cargo_bin("unshear").expect("binary");
+    let listing = |d: &std::path::Path| {
+        let mut names: Vec<String> = std::fs::read_dir(d)
+            .expect("list")
+            .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        names
+    };
+
+    let out = dir.path().join("frames");
+    std::fs::create_dir(&out).expect("mkdir");
+    std::fs::write(out.join("000002.png"), b"kept").expect("write");
+    unshear()
+        .args(["video", "--no-correct"])
+        .arg(&clip_path)
+        .arg("-o")
+        .arg(&out)
+        .assert()
+        .code(1);
+    assert_eq!(listing(&out), ["000002.png"], "no frame moved in");
+    assert_eq!(
+        std::fs::read(out.join("000002.png")).expect("kept"),
+        b"kept"
+    );
+
+    let cut = dir.path().join("cut.y4m");
+    std::fs::write(&cut, &bytes[..bytes.len() - 100]).expect("write");
+    let fresh = dir.path().join("fresh");
+    unshear()
+        .args(["video", "--no-correct"])
+        .arg(&cut)
+        .arg("-o")
+        .arg(&fresh)
+        .assert()
+        .failure();
+    assert!(!fresh.exists(), "a failed run leaves no frame folder");
+    assert!(
+        listing(dir.path())
+            .iter()
+            .all(|n| !n.starts_with(".unshear-")),
+        "{:?}",
+        listing(dir.path())
+    );
+
+    let run = unshear()
+        .args(["video", "--no-correct"])
+        .arg(&clip_path)
+        .arg("-o")
+        .arg(&fresh)
+        .arg(format!("--json={}", fresh.join("frames.jsonl").display()))
+        .assert()
+        .code(2);
+    let stderr = String::from_utf8_lossy(&run.get_output().stderr).into_owned();
+    assert!(stderr.contains("lies in the frame folder"), "{stderr}");
+
+    unshear()
+        .args(["video", "--no-correct"])
+        .arg(&clip_path)
+        .arg("-o")
+        .arg(&fresh)
+        .assert()
+        .success();
+    assert_eq!(listing(&fresh).len(), 4);
+}

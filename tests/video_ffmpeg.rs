@@ -186,6 +186,22 @@ fn lavfi_clip(out: &Path, sources: &[&str], options: &[&str], sound: bool) {
     ffmpeg(&args, None);
 }
 
+/// `y4m` encoded to an H.264 file `out`, without sound.
+fn h264_from(y4m: &Path, out: &Path) {
+    ffmpeg(
+        &[
+            "-i",
+            path(y4m),
+            "-c:v",
+            "libx264",
+            "-preset",
+            "ultrafast",
+            path(out),
+        ],
+        None,
+    );
+}
+
 /// A short H.264 + AAC MP4 of the sheared face, flagged for display rotated by 90 degrees
 /// (by `-display_rotation` where this ffmpeg has it, as 7.0 does, else by the `rotate` tag
 /// of a stream copy, which only older versions honour).
@@ -402,6 +418,66 @@ fn mp4_in_mp4_out_keeps_sound_frames_duration_and_rotation() {
     let mean = residual.iter().sum::<f64>() / residual.len() as f64;
     assert!(mean.abs() < 0.06, "corrected clip reads k {mean}");
     assert!(temporaries(dir.path()).is_empty());
+}
+
+/// A picture that starts half a second after its sound (as in TS recordings and edits) still
+/// starts half a second after it, to within a frame (the encoder's time base is the frame
+/// rate's), with every frame once.
+#[test]
+fn a_picture_starting_after_the_sound_stays_in_step() {
+    let Some(dir) = ffmpeg_test_dir("libx264", "picture_after_sound") else {
+        return;
+    };
+    let y4m = dir.path().join("clip.y4m");
+    std::fs::write(&y4m, y4m8(&frames())).expect("write y4m");
+    let plain = dir.path().join("plain.mp4");
+    h264_from(&y4m, &plain);
+    // The picture copied half a second late beside new sound (an encode would fill the gap).
+    let clip = dir.path().join("late.mp4");
+    let mut args = vec!["-itsoffset", "0.5", "-i", path(&plain)];
+    args.extend(lavfi("sine=frequency=440:sample_rate=48000:duration=1.5"));
+    args.extend([
+        "-map",
+        "0:v",
+        "-map",
+        "1:a",
+        "-c:v",
+        "copy",
+        "-c:a",
+        "aac",
+        path(&clip),
+    ]);
+    ffmpeg(&args, None);
+    let late = |file: &Path| {
+        let s = streams(file);
+        number(&stream(&s, "video")["start_time"]) - number(&stream(&s, "audio")["start_time"])
+    };
+    let before = late(&clip);
+    assert!(
+        (before - 0.5).abs() < 0.05,
+        "test clip: picture {before} s late"
+    );
+    for ext in ["mp4", "mkv"] {
+        let out = dir.path().join(format!("fixed.{ext}"));
+        run_ok(&mut video_cmd(&clip, &out));
+        let after = late(&out);
+        assert!(
+            (after - before).abs() <= 1.0 / 25.0 + 1e-3,
+            "{ext}: picture {before} s late before, {after} s after"
+        );
+        let v = streams(&out);
+        let frames = Command::new("ffprobe")
+            .args(["-v", "error", "-count_frames", "-select_streams", "v"])
+            .args(["-show_entries", "stream=nb_read_frames", "-of", "csv=p=0"])
+            .arg(&out)
+            .output()
+            .expect("ffprobe");
+        let count: usize = String::from_utf8_lossy(&frames.stdout)
+            .trim()
+            .parse()
+            .expect("count");
+        assert_eq!(count, FRAMES, "{ext}: every frame once ({v:?})");
+    }
 }
 
 #[test]

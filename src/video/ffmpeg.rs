@@ -121,6 +121,11 @@ pub struct VideoStream {
     pub r_frame_rate: Option<(u32, u32)>,
     /// Duration in seconds.
     pub duration: Option<f64>,
+    /// Seconds from the container's start (its earliest stream's) to this stream's first
+    /// frame: 0.5 for a clip whose picture starts half a second after its sound (TS files,
+    /// recorders, edits). The decoder's frames start at the picture, so the encoder's pipe is
+    /// shifted by this much to keep them in step with the sound.
+    pub start_offset: f64,
     /// Counter-clockwise rotation for display, degrees, in `(-180, 180]` (0 without one): the
     /// display matrix's, else the `rotate` tag's.
     pub rotation: i32,
@@ -154,6 +159,7 @@ struct RawProbe {
 struct RawFormat {
     format_name: Option<String>,
     duration: Option<String>,
+    start_time: Option<String>,
 }
 
 #[derive(Deserialize, Default)]
@@ -177,6 +183,7 @@ struct RawStream {
     height: Option<u32>,
     pix_fmt: Option<String>,
     nb_frames: Option<String>,
+    start_time: Option<String>,
     avg_frame_rate: Option<String>,
     r_frame_rate: Option<String>,
     duration: Option<String>,
@@ -267,6 +274,12 @@ impl Probe {
             .and_then(|t| t.trim().parse::<f64>().ok());
         let rotation = normalize_rotation(matrix.or(tag).unwrap_or(0.0));
         let format = raw.format;
+        let seconds = |t: Option<&String>| t.and_then(|t| t.parse::<f64>().ok());
+        let container_start = seconds(format.as_ref().and_then(|f| f.start_time.as_ref()));
+        let start_offset = match (seconds(v.start_time.as_ref()), container_start) {
+            (Some(v), Some(c)) if (v - c).is_finite() => (v - c).max(0.0),
+            _ => 0.0,
+        };
         Ok(Self {
             format_name: format
                 .as_ref()
@@ -283,6 +296,7 @@ impl Probe {
                 avg_frame_rate: v.avg_frame_rate.as_deref().and_then(parse_rate),
                 r_frame_rate: v.r_frame_rate.as_deref().and_then(parse_rate),
                 duration: v.duration.and_then(|d| d.parse().ok()),
+                start_offset,
                 rotation,
                 color: ColorTags {
                     range: known(v.color_range),
@@ -548,6 +562,11 @@ pub enum Container {
     Mkv,
     /// `.webm`.
     WebM,
+    /// `.ts`, `.m2ts`, `.mts` (MPEG transport stream: broadcast, AVCHD cameras).
+    Ts,
+    /// `.m4v`, `.3gp`, `.3g2`: MP4's relatives for players and phones, whose muxers take
+    /// H.264 and AAC but little else.
+    Mobile,
     /// Any other extension: FFmpeg's own defaults for it.
     Other,
 }
@@ -561,29 +580,33 @@ impl Container {
             .unwrap_or_default()
             .to_ascii_lowercase();
         match ext.as_str() {
-            "mp4" | "m4v" => Self::Mp4,
+            "mp4" => Self::Mp4,
             "mov" | "qt" => Self::Mov,
             "mkv" => Self::Mkv,
             "webm" => Self::WebM,
+            "ts" | "m2ts" | "mts" => Self::Ts,
+            "m4v" | "3gp" | "3g2" => Self::Mobile,
             _ => Self::Other,
         }
     }
 
     /// Whether the container stores a display rotation (the MP4 family does).
     pub fn keeps_rotation(self) -> bool {
-        matches!(self, Self::Mp4 | Self::Mov)
+        matches!(self, Self::Mp4 | Self::Mov | Self::Mobile)
     }
 
-    /// Whether it can hold video coded as `codec` (an `ffprobe` codec name).
+    /// Whether it can hold video coded as `codec` (an `ffprobe` codec name), as FFmpeg 5.1's
+    /// muxers write it (its MOV muxer refuses VP9 and AV1: "only supported in MP4"). Other
+    /// containers get FFmpeg's default codec for them, which they are sure to hold.
     fn takes_video(self, codec: &str) -> bool {
         match self {
             Self::Mp4 => matches!(codec, "h264" | "hevc" | "av1" | "vp9" | "mpeg4"),
-            Self::Mov => matches!(
-                codec,
-                "h264" | "hevc" | "prores" | "mpeg4" | "mjpeg" | "av1" | "vp9"
-            ),
+            Self::Mov => matches!(codec, "h264" | "hevc" | "prores" | "mpeg4" | "mjpeg"),
             Self::WebM => matches!(codec, "vp8" | "vp9" | "av1"),
-            Self::Mkv | Self::Other => true,
+            Self::Ts => matches!(codec, "h264" | "hevc" | "mpeg2video"),
+            Self::Mobile => codec == "h264",
+            Self::Mkv => true,
+            Self::Other => false,
         }
     }
 }
@@ -704,8 +727,9 @@ pub fn default_codec(
             &["libx265", "libx264"]
         }
         Container::Mp4 | Container::Mov | Container::Mkv => &["libx264", "libx265"],
+        Container::Mobile => &["libx264"],
         Container::WebM => &["libvpx-vp9", "libsvtav1", "libaom-av1"],
-        Container::Other => &[],
+        Container::Ts | Container::Other => &[],
     };
     wanted
         .iter()
@@ -732,6 +756,9 @@ pub enum StreamAction {
     Copy,
     /// Re-encoded with this encoder (the container cannot hold the source's codec).
     Convert(String),
+    /// Re-encoded with FFmpeg's default encoder for the container (one unshear does not know
+    /// the codecs of).
+    ConvertToDefault,
     /// Left out (the container holds nothing like it), with the reason.
     Drop(String),
 }
@@ -746,18 +773,21 @@ fn audio_action(container: Container, codec: &str) -> StreamAction {
             codec,
             "aac" | "mp3" | "ac3" | "eac3" | "alac" | "opus" | "mp2"
         ),
+        // FFmpeg 5.1's MOV muxer refuses Opus ("only supported in MP4").
         Container::Mov => {
-            matches!(
-                codec,
-                "aac" | "mp3" | "ac3" | "eac3" | "alac" | "opus" | "mp2"
-            ) || codec.starts_with("pcm_")
+            matches!(codec, "aac" | "mp3" | "ac3" | "eac3" | "alac" | "mp2")
+                || codec.starts_with("pcm_")
         }
         Container::WebM => matches!(codec, "opus" | "vorbis"),
-        Container::Mkv | Container::Other => true,
+        Container::Ts => matches!(codec, "aac" | "mp3" | "mp2" | "ac3" | "eac3" | "opus"),
+        Container::Mobile => codec == "aac",
+        Container::Mkv => true,
+        Container::Other => false,
     };
     match (copy, container) {
         (true, _) => StreamAction::Copy,
         (false, Container::WebM) => StreamAction::Convert("libopus".into()),
+        (false, Container::Ts | Container::Other) => StreamAction::ConvertToDefault,
         (false, _) => StreamAction::Convert("aac".into()),
     }
 }
@@ -769,8 +799,12 @@ fn subtitle_action(container: Container, codec: &str) -> StreamAction {
     );
     let drop = || StreamAction::Drop(format!("{container:?} cannot hold {codec} subtitles"));
     match container {
-        Container::Mp4 | Container::Mov if codec == "mov_text" => StreamAction::Copy,
-        Container::Mp4 | Container::Mov if text => StreamAction::Convert("mov_text".into()),
+        Container::Mp4 | Container::Mov | Container::Mobile if codec == "mov_text" => {
+            StreamAction::Copy
+        }
+        Container::Mp4 | Container::Mov | Container::Mobile if text => {
+            StreamAction::Convert("mov_text".into())
+        }
         Container::WebM if codec == "webvtt" => StreamAction::Copy,
         Container::WebM if text => StreamAction::Convert("webvtt".into()),
         Container::Mkv if codec == "mov_text" => StreamAction::Convert("srt".into()),
@@ -879,32 +913,16 @@ impl EncodePlan {
         if let Some(p) = probe {
             for s in &p.audio {
                 let action = audio_action(container, &s.codec);
-                let codec = match &action {
-                    StreamAction::Copy => "copy".to_string(),
-                    StreamAction::Convert(e) => e.clone(),
-                    StreamAction::Drop(_) => {
-                        audio.push((s.clone(), action));
-                        continue;
-                    }
-                };
-                push(&mut args, &["-map", &format!("1:{}", s.index)]);
-                push(&mut args, &[&format!("-c:a:{na}"), &codec]);
-                na += 1;
+                if map_stream(&mut args, 'a', na, s, &action) {
+                    na += 1;
+                }
                 audio.push((s.clone(), action));
             }
             for s in &p.subtitles {
                 let action = subtitle_action(container, &s.codec);
-                let codec = match &action {
-                    StreamAction::Copy => "copy".to_string(),
-                    StreamAction::Convert(e) => e.clone(),
-                    StreamAction::Drop(_) => {
-                        subtitles.push((s.clone(), action));
-                        continue;
-                    }
-                };
-                push(&mut args, &["-map", &format!("1:{}", s.index)]);
-                push(&mut args, &[&format!("-c:s:{ns}"), &codec]);
-                ns += 1;
+                if map_stream(&mut args, 's', ns, s, &action) {
+                    ns += 1;
+                }
                 subtitles.push((s.clone(), action));
             }
             // Global metadata (creation time, location...) and chapters of the source, not of
@@ -912,6 +930,16 @@ impl EncodePlan {
             push(&mut args, &["-map_metadata", "1", "-map_chapters", "1"]);
         }
 
+        // A picture that starts after the sound: the pipe's frames start at 0, so they are
+        // moved to the picture's place, to within a frame (the encoder's time base is the
+        // frame rate's; `-itsoffset` would be lost to the pipe's `-r`). Frames decoded at a
+        // constant rate need none: the decoder filled the gap with copies of the first frame.
+        if let Some(p) = probe.filter(|p| !matches!(p.timing(), Timing::Constant(_))) {
+            if p.video.start_offset >= MIN_START_OFFSET && source.is_some() {
+                let shift = format!("setpts=PTS+{:.6}/TB", p.video.start_offset);
+                push(&mut args, &["-filter:v", &shift]);
+            }
+        }
         if let Some(c) = &codec {
             push(&mut args, &["-c:v", c]);
             if let Some(q) = crf {
@@ -931,7 +959,12 @@ impl EncodePlan {
                 _ => {}
             }
             // Apple's players want HEVC tagged hvc1 in MP4 and MOV.
-            if c == "libx265" && matches!(container, Container::Mp4 | Container::Mov) {
+            if c == "libx265"
+                && matches!(
+                    container,
+                    Container::Mp4 | Container::Mov | Container::Mobile
+                )
+            {
                 push(&mut args, &["-tag:v", "hvc1"]);
             }
         }
@@ -944,7 +977,10 @@ impl EncodePlan {
                 ("-color_primaries", &c.primaries),
                 ("-chroma_sample_location", &c.chroma_location),
             ] {
-                if let Some(v) = value {
+                // An RGB source's matrix (`gbr`) does not describe the YUV frames it was
+                // converted to, and the encoders' option refuses it.
+                let rgb = option == "-colorspace" && value.as_deref() == Some("gbr");
+                if let Some(v) = value.as_ref().filter(|_| !rgb) {
                     push(&mut args, &[option, v]);
                 }
             }
@@ -985,6 +1021,32 @@ impl EncodePlan {
         args
     }
 }
+
+/// Adds to `args` the mapping of the source's stream `s` (input 1) as output stream `n` of
+/// its `kind` (`a`, `s`) with `action`'s codec; `false` when the action leaves it out.
+fn map_stream(
+    args: &mut Vec<OsString>,
+    kind: char,
+    n: usize,
+    s: &Stream,
+    action: &StreamAction,
+) -> bool {
+    let codec = match action {
+        StreamAction::Copy => Some("copy"),
+        StreamAction::Convert(e) => Some(e.as_str()),
+        StreamAction::ConvertToDefault => None,
+        StreamAction::Drop(_) => return false,
+    };
+    push(args, &["-map", &format!("1:{}", s.index)]);
+    if let Some(codec) = codec {
+        push(args, &[&format!("-c:{kind}:{n}"), codec]);
+    }
+    true
+}
+
+/// The smallest start offset ([`VideoStream::start_offset`]) the encoder is given, seconds:
+/// below a millisecond it is the containers' rounding, not a picture starting late.
+const MIN_START_OFFSET: f64 = 1e-3;
 
 /// A number without a needless fraction (`18`, `20.5`).
 fn format_number(v: f64) -> String {
@@ -1084,6 +1146,65 @@ mod tests {
     }
 
     #[test]
+    fn a_picture_starting_after_the_sound_is_moved_to_its_place() {
+        let late = PROBE
+            .replace(
+                "\"duration\": \"10.01\"",
+                "\"duration\": \"10.01\", \"start_time\": \"1.723\"",
+            )
+            .replace(
+                "\"duration\": \"10.05\"",
+                "\"duration\": \"10.05\", \"start_time\": \"1.4\"",
+            );
+        let p = Probe::parse(late.as_bytes()).expect("valid JSON");
+        assert!((p.video.start_offset - 0.323).abs() < 1e-9);
+        let args = |p: &Probe, source: bool| {
+            let plan = EncodePlan::new(
+                Path::new("o.mp4"),
+                10,
+                source.then_some((Path::new("in.mp4"), p)),
+                &EncodeSettings::default(),
+                &caps(true),
+            )
+            .expect("plan");
+            strings(&plan.args).join(" ")
+        };
+        assert!(args(&p, true).contains("-filter:v setpts=PTS+0.323000/TB"));
+        // Nothing to keep in step with without the source's streams; nothing to move when the
+        // picture starts first, or at a constant rate (the decoder filled the gap).
+        let first = Probe::parse(PROBE.as_bytes()).expect("valid JSON");
+        assert_eq!(first.video.start_offset, 0.0);
+        assert!(!args(&first, true).contains("setpts"));
+        let variable = late.replace(
+            "\"avg_frame_rate\": \"30000/1001\"",
+            "\"avg_frame_rate\": \"20/1\"",
+        );
+        let p = Probe::parse(variable.as_bytes()).expect("valid JSON");
+        assert!(matches!(p.timing(), Timing::Constant(_)));
+        assert!(!args(&p, true).contains("setpts"));
+    }
+
+    #[test]
+    fn an_rgb_sources_matrix_is_not_passed_on() {
+        let rgb = PROBE.replace("\"bt2020nc\"", "\"gbr\"");
+        let p = Probe::parse(rgb.as_bytes()).expect("valid JSON");
+        let plan = EncodePlan::new(
+            Path::new("o.mkv"),
+            8,
+            Some((Path::new("in.mkv"), &p)),
+            &EncodeSettings::default(),
+            &caps(true),
+        )
+        .expect("plan");
+        let a = strings(&plan.args).join(" ");
+        assert!(!a.contains("-colorspace"), "{a}");
+        assert!(
+            a.contains("-color_trc arib-std-b67"),
+            "the other tags stay: {a}"
+        );
+    }
+
+    #[test]
     fn steady_clips_pass_through_and_variable_ones_get_a_constant_rate() {
         let probe = |avg: &str, r: &str| {
             let json = PROBE.replace(
@@ -1135,6 +1256,21 @@ mod tests {
         assert_eq!(normalize_rotation(-180.0), 180);
         assert_eq!(normalize_rotation(90.4), 90);
         assert_eq!(normalize_rotation(f64::NAN), 0);
+    }
+
+    #[test]
+    fn audio_is_copied_only_where_the_muxer_takes_it() {
+        use StreamAction::{Convert, ConvertToDefault, Copy};
+        let a = audio_action;
+        assert_eq!(a(Container::Mp4, "opus"), Copy);
+        assert_eq!(a(Container::Mov, "opus"), Convert("aac".into()));
+        assert_eq!(a(Container::Mov, "pcm_s16le"), Copy);
+        assert_eq!(a(Container::Mobile, "mp3"), Convert("aac".into()));
+        assert_eq!(a(Container::Ts, "ac3"), Copy);
+        assert_eq!(a(Container::Ts, "flac"), ConvertToDefault);
+        assert_eq!(a(Container::Other, "aac"), ConvertToDefault);
+        assert_eq!(a(Container::WebM, "aac"), Convert("libopus".into()));
+        assert_eq!(a(Container::Mkv, "flac"), Copy);
     }
 
     #[test]
@@ -1192,6 +1328,18 @@ mod tests {
             Some("libvpx-vp9")
         );
         assert_eq!(d(Container::Other, Some("mpeg2video"), 8), None);
+        // Codecs a container's muxer refuses are not kept: VP9 and AV1 in MOV (FFmpeg 5.1),
+        // anything in containers unshear does not know (FFmpeg's default for them).
+        let mut c = caps(true);
+        c.encoders.extend(["libsvtav1", "mpeg4"].map(String::from));
+        let d = |cont, src| default_codec(cont, Some(src), 8, &c);
+        assert_eq!(d(Container::Mov, "vp9").as_deref(), Some("libx264"));
+        assert_eq!(d(Container::Mov, "av1").as_deref(), Some("libx264"));
+        assert_eq!(d(Container::Other, "h264"), None);
+        assert_eq!(d(Container::Ts, "h264").as_deref(), Some("libx264"));
+        assert_eq!(d(Container::Mobile, "mpeg4").as_deref(), Some("libx264"));
+        assert_eq!(Container::of(Path::new("clip.MTS")), Container::Ts);
+        assert_eq!(Container::of(Path::new("clip.3gp")), Container::Mobile);
         assert_eq!(Container::of(Path::new("a/B.MP4")), Container::Mp4);
         assert_eq!(default_crf("libx264"), Some(18.0));
     }

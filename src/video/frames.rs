@@ -4,8 +4,10 @@
 //! * In: every file of the folder (not its sub-folders) with an image extension, in natural
 //!   order (`frame2.png` before `frame10.png`: runs of digits compare as numbers). All frames
 //!   must have the size of the first.
-//! * Out: `000000.EXT`, `000001.EXT`, ... in the output folder (created if needed), each written
-//!   atomically; an existing file is only replaced when allowed, an input never.
+//! * Out: `000000.EXT`, `000001.EXT`, ... in the output folder (created if needed). They are
+//!   written into a temporary folder beside it and moved into it only when the run finishes,
+//!   so a run that fails or is stopped leaves no frame; an existing file is only replaced
+//!   when allowed, an input never.
 
 use std::cmp::Ordering;
 use std::io::{Read, Write};
@@ -189,21 +191,29 @@ impl FrameSource for FrameFolderReader {
     }
 }
 
-/// Frames written as numbered images into a folder.
+/// Frames written as numbered images into a folder: staged in a temporary folder beside it
+/// (`.unshear-XXXXXX`, so that moving them in is a rename) and moved in by
+/// [`Self::commit`], after checking that none would replace an input, or an existing file
+/// without `overwrite`. Dropped uncommitted (a run that failed, Ctrl-C), it leaves nothing:
+/// [`run`](super::run) finishes a sink even when its source failed part-way, so committing
+/// is the caller's decision.
 #[derive(Debug)]
 pub struct FrameFolderWriter {
     dir: PathBuf,
     extension: String,
     options: WriteOptions,
     next: u64,
+    staging: tempfile::TempDir,
+    _listed: imageio::InProgress,
 }
 
 impl FrameFolderWriter {
-    /// Writes into `dir` (created if needed) as `NNNNNN.<extension>`.
+    /// Writes into `dir` (created when the frames are moved in, with the folders above it) as
+    /// `NNNNNN.<extension>`.
     ///
     /// # Errors
     /// [`Error::Refused`] for an extension [`imageio`] cannot write, [`Error::Io`] if the
-    /// folder cannot be created.
+    /// folder above `dir` or the staging folder cannot be created.
     pub fn new(dir: &Path, extension: &str, options: WriteOptions) -> Result<Self> {
         let probe = dir.join(format!("000000.{extension}"));
         if !imageio::output_format_supported(&probe) {
@@ -213,21 +223,52 @@ impl FrameFolderWriter {
                     .into(),
             });
         }
-        std::fs::create_dir_all(dir).map_err(|source| Error::Io {
-            path: dir.to_path_buf(),
-            source,
-        })?;
+        let io_err = |path: &Path| {
+            let path = path.to_path_buf();
+            move |source| Error::Io { path, source }
+        };
+        let parent = match dir.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => Path::new("."),
+        };
+        std::fs::create_dir_all(parent).map_err(io_err(parent))?;
+        let (staging, listed) = imageio::InProgress::create_dir(parent).map_err(io_err(parent))?;
         Ok(Self {
             dir: dir.to_path_buf(),
             extension: extension.to_string(),
             options,
             next: 0,
+            staging,
+            _listed: listed,
         })
     }
 
-    /// The file frame `index` is written to.
+    /// The file frame `index` is written to (once the frames are moved in).
     pub fn frame_path(&self, index: u64) -> PathBuf {
-        self.dir.join(format!("{index:06}.{}", self.extension))
+        self.dir.join(self.frame_name(index))
+    }
+
+    fn frame_name(&self, index: u64) -> String {
+        format!("{index:06}.{}", self.extension)
+    }
+
+    /// How many frames numbered past the last one written are in the folder (of an earlier,
+    /// longer run replaced with `overwrite`): they are not removed, and make the folder read
+    /// as a longer clip.
+    pub fn later_frames(&self) -> u64 {
+        let Ok(entries) = std::fs::read_dir(&self.dir) else {
+            return 0;
+        };
+        let suffix = format!(".{}", self.extension);
+        entries
+            .filter_map(|e| e.ok())
+            .filter_map(|e| {
+                let name = e.file_name().into_string().ok()?;
+                let digits = name.strip_suffix(&suffix)?;
+                let index: u64 = (digits.len() == 6).then(|| digits.parse().ok())??;
+                (index >= self.next).then_some(())
+            })
+            .count() as u64
     }
 }
 
@@ -239,13 +280,58 @@ impl FrameSink for FrameFolderWriter {
             // Images are written at 8 bits.
             VideoFrame::Yuv16(f) => yuv_to_image(&f.to_8bit()),
         };
-        let path = self.frame_path(self.next);
-        imageio::write_image_atomic(&img, &path, self.options.clone())?;
+        let path = self.staging.path().join(self.frame_name(self.next));
+        let options = WriteOptions {
+            overwrite: false,
+            protected: Vec::new(),
+            ..self.options.clone()
+        };
+        imageio::write_image_atomic(&img, &path, options)?;
         self.next += 1;
         Ok(())
     }
 
     fn finish(&mut self) -> Result<()> {
+        Ok(())
+    }
+}
+
+impl FrameFolderWriter {
+    /// Moves the frames written into the folder (created with the folders above it): none if
+    /// one would replace an input, or an existing file without `overwrite`.
+    ///
+    /// # Errors
+    /// [`Error::Refused`] for such a frame, [`Error::Io`] if a frame cannot be moved.
+    pub fn commit(&mut self) -> Result<()> {
+        let targets: Vec<PathBuf> = (0..self.next).map(|i| self.frame_path(i)).collect();
+        let refuse = |path: &Path, reason: &str| Error::Refused {
+            path: path.to_path_buf(),
+            reason: reason.to_owned(),
+        };
+        for target in &targets {
+            if self
+                .options
+                .protected
+                .iter()
+                .any(|p| imageio::same_file(p, target))
+            {
+                return Err(refuse(target, "it is an input file"));
+            }
+            if !self.options.overwrite && target.exists() {
+                return Err(refuse(target, imageio::EXISTS));
+            }
+        }
+        std::fs::create_dir_all(&self.dir).map_err(|source| Error::Io {
+            path: self.dir.clone(),
+            source,
+        })?;
+        for (i, target) in targets.iter().enumerate() {
+            let staged = self.staging.path().join(self.frame_name(i as u64));
+            std::fs::rename(&staged, target).map_err(|source| Error::Io {
+                path: target.clone(),
+                source,
+            })?;
+        }
         Ok(())
     }
 }
@@ -339,19 +425,61 @@ mod tests {
         while let Some(f) = reader.next_frame().expect("frame") {
             writer.write_frame(f).expect("write");
         }
+        // Nothing under the folder's name until the frames are moved in.
+        assert!(!out.exists());
+        writer.commit().expect("moved in");
+        drop(writer);
         let back = imageio::read_image(&out.join("000002.png"), 1000).expect("written");
         assert_eq!(
             back,
             DynamicImage::ImageLuma8(GrayImage::from_pixel(8, 6, Luma([50])))
         );
-        // Existing outputs are not replaced without permission.
+        let staged = |d: &Path| {
+            std::fs::read_dir(d)
+                .expect("list")
+                .filter(|e| {
+                    let name = e.as_ref().expect("entry").file_name();
+                    name.to_string_lossy().starts_with(".unshear-")
+                })
+                .count()
+        };
+        assert_eq!(staged(dir.path()), 0, "the staging folder is removed");
+        // Existing outputs are not replaced without permission: no frame is moved in.
         let mut again =
             FrameFolderWriter::new(&out, "png", WriteOptions::default()).expect("writer");
-        let frame = VideoFrame::Image(DynamicImage::ImageLuma8(GrayImage::new(8, 6)));
-        assert!(matches!(
-            again.write_frame(frame),
-            Err(Error::Refused { .. })
-        ));
+        let frame = |v| {
+            VideoFrame::Image(DynamicImage::ImageLuma8(GrayImage::from_pixel(
+                8,
+                6,
+                Luma([v]),
+            )))
+        };
+        again.write_frame(frame(7)).expect("staged");
+        assert!(matches!(again.commit(), Err(Error::Refused { .. })));
+        drop(again);
+        assert_eq!(staged(dir.path()), 0);
+        let first = imageio::read_image(&out.join("000000.png"), 1000).expect("kept");
+        assert_ne!(first.to_luma8().get_pixel(0, 0)[0], 7);
+        // Replaced with permission; the later frames of the longer run are counted.
+        let options = WriteOptions {
+            overwrite: true,
+            ..WriteOptions::default()
+        };
+        let mut shorter = FrameFolderWriter::new(&out, "png", options).expect("writer");
+        shorter.write_frame(frame(7)).expect("staged");
+        shorter.commit().expect("moved in");
+        assert_eq!(shorter.later_frames(), 2);
+        let first = imageio::read_image(&out.join("000000.png"), 1000).expect("replaced");
+        assert_eq!(first.to_luma8().get_pixel(0, 0)[0], 7);
+        drop(shorter);
+        // Dropped unfinished (an error part-way), it leaves nothing.
+        let fresh = dir.path().join("fresh");
+        let mut failed =
+            FrameFolderWriter::new(&fresh, "png", WriteOptions::default()).expect("writer");
+        failed.write_frame(frame(1)).expect("staged");
+        drop(failed);
+        assert!(!fresh.exists());
+        assert_eq!(staged(dir.path()), 0);
         // A frame of another size is an error.
         GrayImage::new(4, 4)
             .save(input.join("frame11.png"))

@@ -73,7 +73,7 @@ fn is_y4m_path(p: &Path) -> bool {
 /// Video container extensions written through ffmpeg (other paths are frame folders).
 const CONTAINER_EXTENSIONS: &[&str] = &[
     "mp4", "m4v", "mov", "qt", "mkv", "webm", "avi", "ts", "m2ts", "mts", "mxf", "flv", "ogv",
-    "3gp", "nut",
+    "3gp", "3g2", "nut", "mpg", "mpeg", "wmv", "asf",
 ];
 
 fn is_container_path(p: &Path) -> bool {
@@ -333,6 +333,23 @@ pub fn video(a: VideoArgs) -> Result<()> {
         Some(o) if is_container_path(o) => Output::Container(o.to_path_buf()),
         Some(o) => Output::Folder(o.to_path_buf()),
     };
+    if let (Output::Folder(dir), Some(json)) = (&output, a.json.as_deref()) {
+        let inside = json.parent().is_some_and(|p| {
+            let p = if p.as_os_str().is_empty() {
+                Path::new(".")
+            } else {
+                p
+            };
+            same_target(p, dir)
+        });
+        if !is_stdio(json) && inside {
+            usage_error(&format!(
+                "--json={} lies in the frame folder -o {}; write it elsewhere",
+                json.display(),
+                dir.display()
+            ));
+        }
+    }
     // A video file in or out needs ffmpeg: found, asked what it can do and the input probed
     // while the models load (each start of ffmpeg or ffprobe takes a good part of a second on
     // a busy machine), and before any frame is processed.
@@ -423,6 +440,7 @@ pub fn video(a: VideoArgs) -> Result<()> {
     let mut json_error: Option<std::io::Error> = None;
     let mut progress = Progress::new(expected);
     let mut frames_with_faces = 0u64;
+    let mut frames_measured = 0u64;
     let mut on_frame = |r: &FrameResult| {
         if let Some(out) = json_out.as_mut() {
             if json_error.is_none() {
@@ -433,6 +451,9 @@ pub fn video(a: VideoArgs) -> Result<()> {
         }
         if !r.faces.is_empty() {
             frames_with_faces += 1;
+        }
+        if r.k_raw.is_some() {
+            frames_measured += 1;
         }
         progress.frame();
     };
@@ -468,13 +489,24 @@ pub fn video(a: VideoArgs) -> Result<()> {
         }
         Output::Folder(dir) => {
             let mut sink = FrameFolderWriter::new(dir, &a.frame_format, write_options.clone())?;
-            run(
+            let stats = run(
                 source.as_mut(),
                 Some(&mut sink),
                 &mut processor,
                 &mut on_frame,
             )
-            .with_context(|| format!("writing frames into {}", dir.display()))?
+            .with_context(|| format!("writing frames into {}", dir.display()))?;
+            sink.commit()
+                .with_context(|| format!("writing frames into {}", dir.display()))?;
+            let later = sink.later_frames();
+            if later > 0 {
+                eprintln!(
+                    "unshear video: warning: {later} frames numbered after the last one \
+                     written are left in {} from before; the folder reads as a longer clip",
+                    dir.display()
+                );
+            }
+            stats
         }
         Output::Container(o) => {
             let ff = ffmpeg.as_ref().context("ffmpeg was not set up")?;
@@ -533,12 +565,18 @@ pub fn video(a: VideoArgs) -> Result<()> {
                  y4m and frame folders carry no such flag, so their frames are as stored"
             );
         }
-        if frames_with_faces == 0 && r != 0 {
+        if frames_measured == 0 && r != 0 {
+            // Faces found on their side are refused (their pose), so "no face measured".
+            let what = if frames_with_faces == 0 {
+                "no face was found"
+            } else {
+                "no face was measured"
+            };
             eprintln!(
-                "unshear video: note: no face was found; the frames are stored rotated by {r} \
+                "unshear video: note: {what}; the frames are stored rotated by {r} \
                  degrees for display (e.g. a phone held upright) and are analysed as stored, \
                  where rolling shutter shears them, so faces upright on screen lie on their \
-                 side or upside down there, where the detector does not find them"
+                 side or upside down there, where they are not found or not measured"
             );
         }
     }
@@ -715,6 +753,7 @@ fn describe(plan: &EncodePlan) -> String {
             .iter()
             .filter_map(|(s, x)| match x {
                 StreamAction::Convert(e) => Some(format!("{} to {e}", s.codec)),
+                StreamAction::ConvertToDefault => Some(format!("{} to ffmpeg's default", s.codec)),
                 _ => None,
             })
             .collect();
