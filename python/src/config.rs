@@ -321,8 +321,13 @@ impl PyConfig {
     }
 
     /// The detector these settings run: the one asked for, else Viola-Jones when a search or
-    /// the filters ask for it (as the CLI decides), else the network.
+    /// the filters ask for it (as the CLI decides), else the network. With the filters it is
+    /// Viola-Jones even when the network is asked for: the library runs the network detector
+    /// only with the network locator, which judges its windows (`Detector::Network`).
     pub fn resolved_detector(&self) -> Detector {
+        if self.locator == Locator::Filters {
+            return Detector::ViolaJones;
+        }
         let viola_jones = self.search.is_some()
             || self.locator == Locator::Filters
             || self.shear_hypotheses.is_some()

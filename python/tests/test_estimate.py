@@ -155,6 +155,10 @@ def test_every_setting_round_trips() -> None:
     assert unshear.Unshear(max_crops=None, min_face=None).config["min_face"] is None
     # A search is the cascade's: it chooses the Viola-Jones detector, as --quick does.
     assert unshear.Unshear(search="thorough").config["detector"] == "viola-jones"
+    # The filters run with Viola-Jones even when the network detector is asked for, and say so.
+    filters = unshear.Unshear(detector="network", locator="filters")
+    assert filters.config["detector"] == "viola-jones"
+    assert "detector='viola-jones'" in repr(filters)
 
 
 @pytest.mark.parametrize(

@@ -410,7 +410,7 @@ fn correct_one(
     let out = output_path(a, input)?;
     if !imageio::output_format_supported(&out) {
         bail!(
-            "{}: unsupported output format (use .jpg, .png, .pgm/.ppm, .bmp, .tif or .webp)",
+            "{}: unsupported output format ({OUTPUT_FORMATS})",
             out.display()
         );
     }
@@ -567,6 +567,9 @@ fn correct(a: CorrectArgs) -> Result<bool> {
 }
 
 /// Reports a usage error the way clap does (exit code 2).
+/// The output extensions, for messages.
+const OUTPUT_FORMATS: &str = "use .jpg/.jpeg, .png, .pgm, .ppm, .pnm, .bmp, .tif/.tiff or .webp";
+
 fn usage_error(message: &str) -> ! {
     let mut cmd = <Cli as clap::CommandFactory>::command();
     cmd.error(clap::error::ErrorKind::ArgumentConflict, message)
@@ -578,14 +581,18 @@ fn distort(a: DistortArgs) -> Result<()> {
         usage_error("--k and --pivot must be finite numbers");
     }
     if !imageio::output_format_supported(&a.output) {
-        bail!("{}: unsupported output format", a.output.display());
+        bail!(
+            "{}: unsupported output format ({OUTPUT_FORMATS})",
+            a.output.display()
+        );
     }
     let img = imageio::read_image(&a.input, a.max_pixels)?;
     let shear = match a.pivot {
         Some(p) => Shear::new(a.k, p),
         None => Shear::about_middle(a.k, img.height()),
     };
-    let (out, _) = unshear::warp::try_apply_shear(&img, shear, a.interp.into(), a.canvas.into())?;
+    let (out, _) = unshear::warp::try_apply_shear(&img, shear, a.interp.into(), a.canvas.into())
+        .with_context(|| format!("shearing {}", a.input.display()))?;
     write_atomic(
         &out,
         &a.output,
