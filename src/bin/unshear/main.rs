@@ -67,11 +67,21 @@ fn main() -> ExitCode {
 /// in its refusal.
 fn write_atomic(img: &image::DynamicImage, path: &Path, options: WriteOptions) -> Result<()> {
     imageio::write_image_atomic(img, path, options).map_err(|e| match e {
-        unshear::Error::Refused { ref reason, .. } if reason == imageio::EXISTS => {
-            anyhow::anyhow!("{e}; use --force to replace it")
-        }
+        unshear::Error::Refused {
+            ref reason,
+            ref path,
+        } if reason == imageio::EXISTS => exists_error(path),
         e => e.into(),
     })
+}
+
+/// The error for an output that exists, `--force` not given.
+fn exists_error(path: &Path) -> anyhow::Error {
+    let refused = unshear::Error::Refused {
+        path: path.to_path_buf(),
+        reason: imageio::EXISTS.to_owned(),
+    };
+    anyhow::anyhow!("{refused}; use --force to replace it")
 }
 
 /// Prints a line to stdout, ignoring a closed pipe (e.g. `| head`) rather than panicking.
@@ -416,14 +426,11 @@ fn correct_one(
     }
     // Both outputs are checked before any work, so a refused one leaves the other unwritten.
     if !a.force {
-        for path in std::iter::once(&out).chain(&a.annotate) {
-            if path.exists() {
-                let e = unshear::Error::Refused {
-                    path: path.clone(),
-                    reason: imageio::EXISTS.to_owned(),
-                };
-                bail!("{e}; use --force to replace it");
-            }
+        if let Some(path) = std::iter::once(&out)
+            .chain(&a.annotate)
+            .find(|p| p.exists())
+        {
+            return Err(exists_error(path));
         }
     }
     let (img, metadata) = imageio::read_image_with_metadata(&input.path, a.model.max_pixels)?;
@@ -566,10 +573,10 @@ fn correct(a: CorrectArgs) -> Result<bool> {
     Ok(all_ok)
 }
 
-/// Reports a usage error the way clap does (exit code 2).
 /// The output extensions, for messages.
 const OUTPUT_FORMATS: &str = "use .jpg/.jpeg, .png, .pgm, .ppm, .pnm, .bmp, .tif/.tiff or .webp";
 
+/// Reports a usage error the way clap does (exit code 2).
 fn usage_error(message: &str) -> ! {
     let mut cmd = <Cli as clap::CommandFactory>::command();
     cmd.error(clap::error::ErrorKind::ArgumentConflict, message)
