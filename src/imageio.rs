@@ -446,7 +446,7 @@ fn write_with_metadata(
 
 /// Whether `a` and `b` name the same existing file: equal canonical paths, or (on Unix) the same
 /// device and inode, which also catches hard links.
-pub(crate) fn same_file(a: &Path, b: &Path) -> bool {
+fn same_file(a: &Path, b: &Path) -> bool {
     if let (Ok(ca), Ok(cb)) = (a.canonicalize(), b.canonicalize()) {
         if ca == cb {
             return true;
@@ -505,16 +505,8 @@ pub fn write_atomic(
         path: path.to_path_buf(),
         source,
     };
-    if opts.protected.iter().any(|p| same_file(p, path)) {
-        return Err(refuse("it is an input file"));
-    }
-    if !opts.overwrite && path.exists() {
-        return Err(refuse(EXISTS));
-    }
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
+    check_writable(path, opts)?;
+    let dir = folder_of(path);
     let mut builder = tempfile::Builder::new();
     builder.prefix(".unshear-").suffix(".tmp");
     // tempfile creates 0600 files; an output should get the usual 0666-minus-umask instead.
@@ -547,6 +539,30 @@ pub fn write_atomic(
 /// once [`abandon_writes`] has run.
 static IN_PROGRESS: std::sync::Mutex<Option<Vec<PathBuf>>> =
     std::sync::Mutex::new(Some(Vec::new()));
+
+/// Refuses (with [`Error::Refused`]) to write `path` when it is one of `opts.protected`, or
+/// exists and `opts.overwrite` is not set.
+pub(crate) fn check_writable(path: &Path, opts: &WriteOptions) -> Result<()> {
+    let refuse = |reason: &str| Error::Refused {
+        path: path.to_path_buf(),
+        reason: reason.to_owned(),
+    };
+    if opts.protected.iter().any(|p| same_file(p, path)) {
+        return Err(refuse("it is an input file"));
+    }
+    if !opts.overwrite && path.exists() {
+        return Err(refuse(EXISTS));
+    }
+    Ok(())
+}
+
+/// The folder `path` is in (`.` for a bare name).
+pub(crate) fn folder_of(path: &Path) -> &Path {
+    match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    }
+}
 
 /// Keeps one temporary file (or folder) listed in [`IN_PROGRESS`] for its lifetime.
 #[derive(Debug)]

@@ -592,6 +592,12 @@ impl Container {
 
     /// Whether the container stores a display rotation (the MP4 family does).
     pub fn keeps_rotation(self) -> bool {
+        self.is_mp4_family()
+    }
+
+    /// MP4, MOV and their relatives (`.m4v`, `.3gp`): ISO media files, written by FFmpeg's
+    /// MOV muxers (display matrix, `mov_text` subtitles, `hvc1` tags).
+    fn is_mp4_family(self) -> bool {
         matches!(self, Self::Mp4 | Self::Mov | Self::Mobile)
     }
 
@@ -799,12 +805,8 @@ fn subtitle_action(container: Container, codec: &str) -> StreamAction {
     );
     let drop = || StreamAction::Drop(format!("{container:?} cannot hold {codec} subtitles"));
     match container {
-        Container::Mp4 | Container::Mov | Container::Mobile if codec == "mov_text" => {
-            StreamAction::Copy
-        }
-        Container::Mp4 | Container::Mov | Container::Mobile if text => {
-            StreamAction::Convert("mov_text".into())
-        }
+        c if c.is_mp4_family() && codec == "mov_text" => StreamAction::Copy,
+        c if c.is_mp4_family() && text => StreamAction::Convert("mov_text".into()),
         Container::WebM if codec == "webvtt" => StreamAction::Copy,
         Container::WebM if text => StreamAction::Convert("webvtt".into()),
         Container::Mkv if codec == "mov_text" => StreamAction::Convert("srt".into()),
@@ -935,7 +937,7 @@ impl EncodePlan {
         // frame rate's; `-itsoffset` would be lost to the pipe's `-r`). Frames decoded at a
         // constant rate need none: the decoder filled the gap with copies of the first frame.
         if let Some(p) = probe.filter(|p| !matches!(p.timing(), Timing::Constant(_))) {
-            if p.video.start_offset >= MIN_START_OFFSET && source.is_some() {
+            if p.video.start_offset >= MIN_START_OFFSET {
                 let shift = format!("setpts=PTS+{:.6}/TB", p.video.start_offset);
                 push(&mut args, &["-filter:v", &shift]);
             }
@@ -959,12 +961,7 @@ impl EncodePlan {
                 _ => {}
             }
             // Apple's players want HEVC tagged hvc1 in MP4 and MOV.
-            if c == "libx265"
-                && matches!(
-                    container,
-                    Container::Mp4 | Container::Mov | Container::Mobile
-                )
-            {
+            if c == "libx265" && container.is_mp4_family() {
                 push(&mut args, &["-tag:v", "hvc1"]);
             }
         }

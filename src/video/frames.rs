@@ -227,10 +227,7 @@ impl FrameFolderWriter {
             let path = path.to_path_buf();
             move |source| Error::Io { path, source }
         };
-        let parent = match dir.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p,
-            _ => Path::new("."),
-        };
+        let parent = imageio::folder_of(dir);
         std::fs::create_dir_all(parent).map_err(io_err(parent))?;
         let (staging, listed) = imageio::InProgress::create_dir(parent).map_err(io_err(parent))?;
         Ok(Self {
@@ -304,22 +301,8 @@ impl FrameFolderWriter {
     /// [`Error::Refused`] for such a frame, [`Error::Io`] if a frame cannot be moved.
     pub fn commit(&mut self) -> Result<()> {
         let targets: Vec<PathBuf> = (0..self.next).map(|i| self.frame_path(i)).collect();
-        let refuse = |path: &Path, reason: &str| Error::Refused {
-            path: path.to_path_buf(),
-            reason: reason.to_owned(),
-        };
         for target in &targets {
-            if self
-                .options
-                .protected
-                .iter()
-                .any(|p| imageio::same_file(p, target))
-            {
-                return Err(refuse(target, "it is an input file"));
-            }
-            if !self.options.overwrite && target.exists() {
-                return Err(refuse(target, imageio::EXISTS));
-            }
+            imageio::check_writable(target, &self.options)?;
         }
         std::fs::create_dir_all(&self.dir).map_err(|source| Error::Io {
             path: self.dir.clone(),
