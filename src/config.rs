@@ -18,7 +18,7 @@ use crate::error::{Error, Result};
 use crate::estimate::ShearModel;
 use crate::filters::FilterType;
 use crate::locate::network::Budget;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// Default confidence below which a face's estimate is refused: about the least trustworthy fifth
 /// of the estimates on web photos.
@@ -86,7 +86,7 @@ pub const MIN_SCALE_FACTOR: f64 = 1.01;
 pub const MIN_NETWORK_FACE: u32 = 24;
 
 /// What locates a face's features.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Locator {
     /// The landmark network: eyes, nose and mouth from one small convolutional network, and

@@ -1,8 +1,11 @@
 //! What `estimate` finds, as Python objects: `Face` and `Report` (and `Frame` for video), with
 //! the CLI's `--json` field names.
 
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList};
+use pyo3::types::{PyDict, PyList, PyType};
+use serde::de::DeserializeOwned;
+use serde::Serialize;
 
 use unshear::{FaceReport, ImageReport, Point};
 
@@ -12,14 +15,25 @@ fn pair(p: Point) -> Pair {
     (p.x, p.y)
 }
 
+/// A result's whole state as plain Python objects (dicts, lists, floats, strings), for pickling.
+pub fn state<'py, T: Serialize>(py: Python<'py>, value: &T) -> PyResult<Bound<'py, PyAny>> {
+    pythonize::pythonize(py, value).map_err(|e| PyValueError::new_err(e.to_string()))
+}
+
+/// A result back from [`state`]'s objects.
+pub fn from_state<T: DeserializeOwned>(state: &Bound<'_, PyAny>) -> PyResult<T> {
+    pythonize::depythonize(state)
+        .map_err(|e| PyValueError::new_err(format!("not the state of an unshear result: {e}")))
+}
+
 fn point_list<'py>(py: Python<'py>, p: Option<Point>) -> PyResult<Option<Bound<'py, PyList>>> {
     p.map(|p| PyList::new(py, [p.x, p.y])).transpose()
 }
 
 /// One face: where it is, its landmarks and its shear. Points are ``(x, y)`` in the input's
 /// pixels, origin top left; the subject's right eye is on the image's left.
-#[pyclass(module = "unshear", frozen)]
-#[derive(Debug, Clone)]
+#[pyclass(module = "unshear", frozen, eq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Face {
     pub inner: FaceReport,
 }
@@ -134,6 +148,22 @@ impl Face {
         Ok(d)
     }
 
+    /// Pickles as the face's full state (`copy` and `multiprocessing` use the same).
+    fn __reduce__<'py>(
+        slf: &Bound<'py, Self>,
+    ) -> PyResult<(Bound<'py, PyAny>, (Bound<'py, PyAny>,))> {
+        let py = slf.py();
+        let restore = slf.get_type().getattr("_from_state")?;
+        Ok((restore, (state(py, &slf.get().inner)?,)))
+    }
+
+    #[classmethod]
+    fn _from_state(_cls: &Bound<'_, PyType>, state: &Bound<'_, PyAny>) -> PyResult<Self> {
+        Ok(Self {
+            inner: from_state(state)?,
+        })
+    }
+
     fn __repr__(&self) -> String {
         let b = self.inner.face_box;
         format!(
@@ -152,8 +182,8 @@ impl Face {
 
 /// What was found in one image: its shear ``k`` (the confidence-weighted median of its faces'
 /// accepted estimates, ``None`` without one) and every face.
-#[pyclass(module = "unshear", frozen)]
-#[derive(Debug, Clone)]
+#[pyclass(module = "unshear", frozen, eq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Report {
     pub inner: ImageReport,
 }
@@ -209,6 +239,22 @@ impl Report {
         d.set_item("faces_disagree", self.inner.faces_disagree)?;
         d.set_item("warnings", self.inner.warnings.clone())?;
         Ok(d)
+    }
+
+    /// Pickles as the report's full state (`copy` and `multiprocessing` use the same).
+    fn __reduce__<'py>(
+        slf: &Bound<'py, Self>,
+    ) -> PyResult<(Bound<'py, PyAny>, (Bound<'py, PyAny>,))> {
+        let py = slf.py();
+        let restore = slf.get_type().getattr("_from_state")?;
+        Ok((restore, (state(py, &slf.get().inner)?,)))
+    }
+
+    #[classmethod]
+    fn _from_state(_cls: &Bound<'_, PyType>, state: &Bound<'_, PyAny>) -> PyResult<Self> {
+        Ok(Self {
+            inner: from_state(state)?,
+        })
     }
 
     fn __repr__(&self) -> String {

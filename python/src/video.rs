@@ -5,7 +5,7 @@ use std::sync::Mutex;
 
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList};
+use pyo3::types::{PyDict, PyList, PyType};
 
 use unshear::imageio::DEFAULT_MAX_PIXELS;
 use unshear::video::temporal::FilterParams;
@@ -15,7 +15,7 @@ use unshear::video::{FrameResult, KSource, ProcessOptions, VideoFrame, VideoProc
 use crate::args;
 use crate::config::{build, PyConfig, Use};
 use crate::image::{from_array, to_array, Layout};
-use crate::report::{faces, Face};
+use crate::report::{faces, from_state, state, Face};
 use crate::{interp_of, to_pyerr};
 
 type Processor<'a> = VideoProcessor<'a>;
@@ -108,6 +108,32 @@ impl Frame {
         }
         d.set_item("faces", list)?;
         Ok(d)
+    }
+
+    /// Pickles as the frame's image and full state (`copy` and `multiprocessing` use the same).
+    #[allow(clippy::type_complexity)]
+    fn __reduce__<'py>(
+        slf: &Bound<'py, Self>,
+    ) -> PyResult<(Bound<'py, PyAny>, (Py<PyAny>, Bound<'py, PyAny>))> {
+        let py = slf.py();
+        let restore = slf.get_type().getattr("_from_state")?;
+        let frame = slf.get();
+        Ok((
+            restore,
+            (frame.image.clone_ref(py), state(py, &frame.result)?),
+        ))
+    }
+
+    #[classmethod]
+    fn _from_state(
+        _cls: &Bound<'_, PyType>,
+        image: Py<PyAny>,
+        state: &Bound<'_, PyAny>,
+    ) -> PyResult<Self> {
+        Ok(Self {
+            image,
+            result: from_state(state)?,
+        })
     }
 
     fn __repr__(&self) -> String {

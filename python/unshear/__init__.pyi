@@ -2,7 +2,7 @@
 
 import os
 from collections.abc import Iterable
-from typing import Any, Literal, final
+from typing import Any, ClassVar, Literal, final
 
 import numpy as np
 import numpy.typing as npt
@@ -101,6 +101,10 @@ class Face:
         """Whether the image's shear came from other faces that disagree with this one's."""
     def to_dict(self) -> dict[str, Any]:
         """The face with the CLI's ``--json`` keys (points as ``[x, y]`` lists, not rounded)."""
+    # Compared by value, so unhashable; pickled and copied whole (every property, not only
+    # those of to_dict()).
+    __hash__: ClassVar[None]  # type: ignore[assignment]
+    def __eq__(self, other: object) -> bool: ...
 
 @final
 class Report:
@@ -127,6 +131,10 @@ class Report:
         """What the caller should know about this image (views skipped, data missing, ...)."""
     def to_dict(self) -> dict[str, Any]:
         """``{"k": ..., "faces": [...]}`` with the CLI's ``--json`` keys, not rounded."""
+    # Compared by value, so unhashable; pickled and copied whole (every property, not only
+    # those of to_dict()).
+    __hash__: ClassVar[None]  # type: ignore[assignment]
+    def __eq__(self, other: object) -> bool: ...
 
 @final
 class Unshear:

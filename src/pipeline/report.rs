@@ -1,7 +1,7 @@
 //! What the pipeline reports: each face's points and estimate, the image's shear, and how a
 //! correction is to be applied.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::annotate::FaceMarks;
 use crate::config::Locator;
@@ -9,7 +9,7 @@ use crate::geometry::{Point, Rect};
 use crate::warp::{Canvas, Interpolation};
 
 /// Why a face's estimate was refused (its `k` is `None`, [`FaceReport::k_measured`] kept).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Refusal {
     /// The learned confidence is below the threshold
@@ -48,7 +48,7 @@ impl Refusal {
 }
 
 /// What was found for one face.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct FaceReport {
     /// The face box from the detector, input-image pixels.
     pub face_box: Rect,
@@ -110,7 +110,7 @@ pub struct FaceReport {
 }
 
 /// What was found in one image.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ImageReport {
     /// The image's shear: the confidence-weighted median of the consistent majority of the
     /// faces' accepted estimates, `None` without one.

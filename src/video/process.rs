@@ -7,6 +7,7 @@ use std::time::Instant;
 
 use image::GrayImage;
 use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
 
 use super::temporal::{FilterParams, ShearSmoother, Update, DEFAULT_SMOOTHING_LAG};
 use super::tracker::{FaceTracker, TrackerParams, TrackerStats};
@@ -62,7 +63,7 @@ impl Default for ProcessOptions {
 }
 
 /// What was found in one frame.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FrameResult {
     /// Frame number, from 0.
     pub index: u64,

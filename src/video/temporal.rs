@@ -65,6 +65,8 @@
 //! With the MOSSE filters (the default since) the per-frame estimates are steadier: 0.0251
 //! causal, 0.0239 from `L` = 6 on.
 
+use serde::{Deserialize, Serialize};
+
 /// Filter settings (see the module docs for their meaning).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FilterParams {
@@ -108,7 +110,8 @@ impl FilterParams {
 }
 
 /// What became of one frame's estimate.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Update {
     /// No estimate this frame: `k` carried forward (or decaying).
     Missing,
