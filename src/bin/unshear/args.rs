@@ -587,6 +587,16 @@ pub struct VideoArgs {
     /// on PATH].
     #[arg(long, value_name = "PATH")]
     pub ffmpeg: Option<PathBuf>,
+    /// Stop, with an error, when ffmpeg or ffprobe keeps unshear waiting this long for a frame,
+    /// for room for one, or for its end: a stuck child fails the run instead of holding it
+    /// (0: wait forever).
+    #[arg(
+        allow_negative_numbers = true,
+        long,
+        value_name = "SECONDS",
+        default_value_t = crate::ffmpeg::DEFAULT_TIMEOUT_SECS
+    )]
+    pub ffmpeg_timeout: u64,
     /// Video encoder of a video-file output, as ffmpeg names it (libx264, libx265,
     /// libvpx-vp9, libsvtav1...) [default: the input's codec where possible, else libx264,
     /// libx265 above 8 bits, libvpx-vp9 for .webm].

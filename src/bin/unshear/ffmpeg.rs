@@ -5,16 +5,18 @@
 //! Every child runs in a process group of its own, so a Ctrl-C at the terminal reaches only
 //! `unshear`, which then ends the children itself ([`abandon`], called by the signal handler)
 //! before it removes its temporary output. Children still running when their handle is dropped
-//! (an error elsewhere) are killed and reaped.
+//! (an error elsewhere) are killed and reaped. A child that keeps `unshear` waiting (for a
+//! frame, for room in its pipe, for its end) longer than `--ffmpeg-timeout` is taken as stuck
+//! and killed by a watchdog thread, so that an unattended batch fails instead of hanging.
 
 use std::ffi::{OsStr, OsString};
 use std::io::{BufReader, BufWriter, Read};
 use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdin, ChildStdout, Command, ExitStatus, Stdio};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex, Once};
 use std::thread::JoinHandle;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 use unshear::video::ffmpeg::{Capabilities, Probe};
@@ -26,6 +28,10 @@ const INSTALL_HINT: &str = "install FFmpeg (Debian/Ubuntu: `apt-get install ffmp
     `dnf install ffmpeg`, macOS: `brew install ffmpeg`, Windows: `winget install ffmpeg`) or \
     give its path with --ffmpeg; y4m files and pipes (`-`) and frame folders work without it";
 
+/// Default of `--ffmpeg-timeout`, seconds: far beyond the wait for any one frame of a slow
+/// encoder, short enough that a stuck child does not hold a batch for long.
+pub const DEFAULT_TIMEOUT_SECS: u64 = 600;
+
 /// The `ffmpeg` and `ffprobe` programs to run.
 #[derive(Debug, Clone)]
 pub struct Tools {
@@ -33,6 +39,8 @@ pub struct Tools {
     pub ffmpeg: PathBuf,
     /// `ffprobe`: beside `ffmpeg` when that was given by path, else on `PATH`.
     pub ffprobe: PathBuf,
+    /// Longest wait on a child before it is killed as stuck (`None`: no limit).
+    pub timeout: Option<Duration>,
 }
 
 /// `name` (with `.exe` on Windows) in the folders of `PATH`.
@@ -57,8 +65,9 @@ fn is_executable(p: &Path) -> bool {
 }
 
 impl Tools {
-    /// Finds the programs (`given`: `--ffmpeg PATH`); `why` says what needs them.
-    pub fn find(given: Option<&Path>, why: &str) -> Result<Self> {
+    /// Finds the programs (`given`: `--ffmpeg PATH`); `why` says what needs them; `timeout`:
+    /// the longest wait on a child (`None`: no limit).
+    pub fn find(given: Option<&Path>, why: &str, timeout: Option<Duration>) -> Result<Self> {
         let ffmpeg = match given {
             Some(p) if is_executable(p) => p.to_path_buf(),
             Some(p) => bail!(
@@ -81,15 +90,23 @@ impl Tools {
                 ffmpeg.display()
             )
         })?;
-        Ok(Self { ffmpeg, ffprobe })
+        Ok(Self {
+            ffmpeg,
+            ffprobe,
+            timeout,
+        })
     }
 
     /// What this `ffmpeg` can do (two quick runs of it, side by side: each start of a
     /// distribution's ffmpeg loads a few hundred shared libraries).
     pub fn capabilities(&self) -> Result<Capabilities> {
+        let text = |args: &[&str], what: &str| {
+            self.output(&self.ffmpeg, args, what)
+                .map(|(_, _, out)| String::from_utf8_lossy(&out).into_owned())
+        };
         let (help, encoders) = std::thread::scope(|scope| {
-            let help = scope.spawn(|| self.output(&self.ffmpeg, ["-hide_banner", "-h", "long"]));
-            let encoders = self.output(&self.ffmpeg, ["-hide_banner", "-encoders"]);
+            let help = scope.spawn(|| text(&["-hide_banner", "-h", "long"], "listing its options"));
+            let encoders = text(&["-hide_banner", "-encoders"], "listing its encoders");
             let help = help
                 .join()
                 .unwrap_or_else(|_| Err(anyhow::anyhow!("ffmpeg -h panicked")));
@@ -100,38 +117,57 @@ impl Tools {
 
     /// The probe of `input`.
     pub fn probe(&self, input: &Path) -> Result<Probe> {
-        let out = Command::new(&self.ffprobe)
-            .args(unshear::video::ffmpeg::probe_args(input))
-            .stdin(Stdio::null())
-            .output()
-            .with_context(|| format!("running {}", self.ffprobe.display()))?;
-        if !out.status.success() {
+        let what = format!("probing {}", input.display());
+        let args = unshear::video::ffmpeg::probe_args(input);
+        let (mut child, status, stdout) = self.output(&self.ffprobe, &args, &what)?;
+        if !status.success() {
             bail!(
                 "{}: not a video ffprobe can read: {}",
                 input.display(),
-                tail(&String::from_utf8_lossy(&out.stderr))
+                child.stderr_tail()
             );
         }
-        Probe::parse(&out.stdout).with_context(|| format!("{}", input.display()))
+        Probe::parse(&stdout).with_context(|| format!("{}", input.display()))
     }
 
-    fn output<I, S>(&self, program: &Path, args: I) -> Result<String>
-    where
-        I: IntoIterator<Item = S>,
-        S: AsRef<OsStr>,
-    {
-        let out = Command::new(program)
-            .args(args)
-            .stdin(Stdio::null())
-            .stderr(Stdio::null())
-            .output()
-            .with_context(|| format!("running {}", program.display()))?;
-        Ok(String::from_utf8_lossy(&out.stdout).into_owned())
+    /// Runs `program` to its end and returns it (its error output kept), how it ended and its
+    /// standard output.
+    fn output<S: AsRef<OsStr>>(
+        &self,
+        program: &Path,
+        args: &[S],
+        what: &str,
+    ) -> Result<(ChildProcess, ExitStatus, Vec<u8>)> {
+        let args: Vec<OsString> = args.iter().map(|a| a.as_ref().to_owned()).collect();
+        let (mut child, _, stdout) = spawn_with(
+            program,
+            &args,
+            Stdio::null(),
+            Stdio::piped(),
+            what,
+            self.timeout,
+        )?;
+        let mut out = Vec::new();
+        if let Some(mut stdout) = stdout {
+            let _busy = child.busy();
+            let _ = stdout.read_to_end(&mut out);
+        }
+        // A child killed as stuck fails here, before its output is looked at.
+        let status = child.wait()?;
+        Ok((child, status, out))
     }
 
     /// Runs `ffmpeg` with `args` to the end (the remux pass).
     pub fn run(&self, args: &[OsString], what: &str) -> Result<()> {
-        let mut child = spawn(&self.ffmpeg, args, Stdio::null(), Stdio::null(), what)?;
+        let mut child = spawn_with(
+            &self.ffmpeg,
+            args,
+            Stdio::null(),
+            Stdio::null(),
+            what,
+            self.timeout,
+        )?
+        .0;
         let status = child.wait()?;
         if !status.success() {
             bail!("ffmpeg failed {what} ({status}): {}", child.stderr_tail());
@@ -246,25 +282,87 @@ pub struct ChildProcess {
     stderr: Option<JoinHandle<String>>,
     stderr_text: Option<String>,
     done: bool,
+    watch: Arc<Watch>,
 }
 
-fn spawn(
-    program: &Path,
-    args: &[OsString],
-    stdin: Stdio,
-    stdout: Stdio,
-    what: &str,
-) -> Result<ChildProcess> {
-    spawn_with(program, args, stdin, stdout, what).map(|(c, _, _)| c)
+/// What the watchdog knows of one child: since when `unshear` has been waiting on it.
+#[derive(Debug)]
+struct Watch {
+    id: u64,
+    /// The longest wait allowed (`None`: no limit).
+    limit: Option<Duration>,
+    /// Milliseconds since [`epoch`] at which the current wait began; 0 while not waiting.
+    waiting_since: AtomicU64,
+    /// Set when the watchdog killed the child.
+    stalled: AtomicBool,
 }
 
-/// Starts `program` and returns it with its piped stdin and stdout (when asked for).
+/// The watches of the running children, checked by the watchdog thread.
+static WATCHES: Mutex<Vec<Arc<Watch>>> = Mutex::new(Vec::new());
+static WATCHDOG: Once = Once::new();
+
+/// The watchdog's clock, started at its first use; never 0 once read (0 means "not waiting").
+fn now_millis() -> u64 {
+    static EPOCH: std::sync::OnceLock<Instant> = std::sync::OnceLock::new();
+    let epoch = *EPOCH.get_or_init(Instant::now);
+    epoch.elapsed().as_millis() as u64 + 1
+}
+
+/// Starts, once, the thread that kills children waited on for longer than their limit.
+fn start_watchdog() {
+    WATCHDOG.call_once(|| {
+        let spawned = std::thread::Builder::new()
+            .name("ffmpeg-watchdog".into())
+            .spawn(|| loop {
+                std::thread::sleep(Duration::from_millis(100));
+                let now = now_millis();
+                let stuck: Vec<Arc<Watch>> = match WATCHES.lock() {
+                    Ok(w) => w
+                        .iter()
+                        .filter(|w| {
+                            let since = w.waiting_since.load(Ordering::SeqCst);
+                            w.limit.is_some_and(|limit| {
+                                since != 0 && now - since > limit.as_millis() as u64
+                            })
+                        })
+                        .cloned()
+                        .collect(),
+                    Err(_) => return,
+                };
+                for w in stuck {
+                    w.stalled.store(true, Ordering::SeqCst);
+                    if let Ok(mut children) = CHILDREN.lock() {
+                        if let Some(pos) = children.iter().position(|(id, _)| *id == w.id) {
+                            // Killed but left listed: its owner reaps it and reports the stall.
+                            let _ = children[pos].1.kill();
+                        }
+                    }
+                }
+            });
+        if let Err(e) = spawned {
+            eprintln!("unshear video: warning: no ffmpeg watchdog ({e}); --ffmpeg-timeout is off");
+        }
+    });
+}
+
+/// A wait on a child, from its making to its drop (see [`ChildProcess::busy`]).
+pub struct Busy(Arc<Watch>);
+
+impl Drop for Busy {
+    fn drop(&mut self) {
+        self.0.waiting_since.store(0, Ordering::SeqCst);
+    }
+}
+
+/// Starts `program` and returns it with its piped stdin and stdout (when asked for); a wait on
+/// it longer than `timeout` kills it.
 fn spawn_with(
     program: &Path,
     args: &[OsString],
     stdin: Stdio,
     stdout: Stdio,
     what: &str,
+    timeout: Option<Duration>,
 ) -> Result<(ChildProcess, Option<ChildStdin>, Option<ChildStdout>)> {
     if ABANDONED.load(Ordering::SeqCst) {
         bail!("interrupted");
@@ -298,19 +396,53 @@ fn spawn_with(
         .map_err(|_| anyhow::anyhow!("child list poisoned"))?;
     children.push((id, child));
     drop(children);
+    let watch = Arc::new(Watch {
+        id,
+        limit: timeout,
+        waiting_since: AtomicU64::new(0),
+        stalled: AtomicBool::new(false),
+    });
+    if timeout.is_some() {
+        start_watchdog();
+        if let Ok(mut watches) = WATCHES.lock() {
+            watches.push(watch.clone());
+        }
+    }
     let process = ChildProcess {
         id,
         what: what.to_string(),
         stderr,
         stderr_text: None,
         done: false,
+        watch,
     };
     Ok((process, stdin, stdout))
 }
 
 impl ChildProcess {
+    /// Marks a wait on the child (a read from it, a write to it, its end) until the guard is
+    /// dropped: the watchdog kills the child if it lasts longer than the limit.
+    pub fn busy(&self) -> Busy {
+        let w = self.watch.clone();
+        w.waiting_since.store(now_millis(), Ordering::SeqCst);
+        Busy(w)
+    }
+
+    /// The error for a child the watchdog killed, `None` for any other.
+    fn stall(&self) -> Option<anyhow::Error> {
+        let w = &self.watch;
+        let limit = w.limit.filter(|_| w.stalled.load(Ordering::SeqCst))?;
+        Some(anyhow::anyhow!(
+            "ffmpeg made no progress {} for {} s and was stopped (--ffmpeg-timeout)",
+            self.what,
+            limit.as_secs_f64()
+        ))
+    }
+
     /// Waits for the child to end (polling, so that [`abandon`] can take the list meanwhile).
+    /// A child the watchdog killed is an error that says so.
     pub fn wait(&mut self) -> Result<ExitStatus> {
+        let busy = self.busy();
         loop {
             {
                 let mut children = CHILDREN
@@ -323,7 +455,11 @@ impl ChildProcess {
                 if let Some(status) = children[pos].1.try_wait()? {
                     children.remove(pos);
                     self.done = true;
-                    return Ok(status);
+                    drop(busy);
+                    return match self.stall() {
+                        Some(e) => Err(e),
+                        None => Ok(status),
+                    };
                 }
             }
             std::thread::sleep(Duration::from_millis(5));
@@ -378,6 +514,9 @@ impl ChildProcess {
 impl Drop for ChildProcess {
     fn drop(&mut self) {
         self.kill();
+        if let Ok(mut watches) = WATCHES.lock() {
+            watches.retain(|w| w.id != self.id);
+        }
     }
 }
 
@@ -412,8 +551,14 @@ impl PendingDecoder {
         indexed: Option<u64>,
     ) -> Result<Self> {
         let what = format!("decoding {}", input.display());
-        let (child, _, stdout) =
-            spawn_with(&tools.ffmpeg, args, Stdio::null(), Stdio::piped(), &what)?;
+        let (child, _, stdout) = spawn_with(
+            &tools.ffmpeg,
+            args,
+            Stdio::null(),
+            Stdio::piped(),
+            &what,
+            tools.timeout,
+        )?;
         let stdout = stdout.context("ffmpeg's output pipe")?;
         Ok(Self {
             child,
@@ -429,7 +574,10 @@ impl PendingDecoder {
             stdout,
             indexed,
         } = self;
-        match Y4mReader::new(BufReader::with_capacity(1 << 20, stdout), max_pixels) {
+        let busy = child.busy();
+        let opened = Y4mReader::new(BufReader::with_capacity(1 << 20, stdout), max_pixels);
+        drop(busy);
+        match opened {
             Ok(reader) => Ok(Decoder {
                 reader,
                 child,
@@ -438,7 +586,7 @@ impl PendingDecoder {
             }),
             Err(e) => {
                 // Most likely ffmpeg could not open or decode the input: its message says why.
-                let _ = child.wait();
+                child.wait()?;
                 let message = child.stderr_tail();
                 bail!("{}: {message} ({e})", child.what)
             }
@@ -461,7 +609,10 @@ impl Decoder {
 impl FrameSource for Decoder {
     fn next_frame(&mut self) -> unshear::Result<Option<VideoFrame>> {
         let video_err = |m: String| unshear::Error::Video(m);
-        match self.reader.read_video_frame() {
+        let busy = self.child.busy();
+        let read = self.reader.read_video_frame();
+        drop(busy);
+        match read {
             Ok(Some(f)) => {
                 self.frames += 1;
                 Ok(Some(f))
@@ -492,7 +643,9 @@ impl FrameSource for Decoder {
                 Ok(None)
             }
             Err(e) => {
-                let _ = self.child.wait();
+                if let Err(stopped) = self.child.wait() {
+                    return Err(video_err(format!("{stopped:#}")));
+                }
                 let message = self.child.stderr_tail();
                 Err(video_err(format!(
                     "{e}; ffmpeg {}: {message}",
@@ -532,8 +685,14 @@ impl PendingEncoder {
     /// `output` (named in messages).
     pub fn spawn(tools: &Tools, args: &[OsString], output: &Path) -> Result<Self> {
         let what = format!("encoding {}", output.display());
-        let (child, stdin, _) =
-            spawn_with(&tools.ffmpeg, args, Stdio::piped(), Stdio::null(), &what)?;
+        let (child, stdin, _) = spawn_with(
+            &tools.ffmpeg,
+            args,
+            Stdio::piped(),
+            Stdio::null(),
+            &what,
+            tools.timeout,
+        )?;
         let stdin = stdin.context("ffmpeg's input pipe")?;
         Ok(Self { child, stdin })
     }
@@ -563,7 +722,9 @@ impl Encoder {
     fn failure(&mut self, e: unshear::Error) -> unshear::Error {
         // A broken pipe means ffmpeg stopped reading: it has ended or is about to.
         drop(self.writer.take());
-        let _ = self.child.wait();
+        if let Err(stopped) = self.child.wait() {
+            return unshear::Error::Video(format!("{stopped:#}"));
+        }
         let message = self.child.stderr_tail();
         unshear::Error::Video(format!("ffmpeg {}: {message} ({e})", self.child.what))
     }
@@ -575,6 +736,7 @@ impl FrameSink for Encoder {
             return Err(unshear::Error::Video("the encoder is closed".into()));
         };
         let pad = self.pad;
+        let busy = self.child.busy();
         let result = match frame {
             VideoFrame::Image(i) => {
                 let f = w.format();
@@ -591,6 +753,7 @@ impl FrameSink for Encoder {
                 w.write_frame16(&f)
             }
         };
+        drop(busy);
         result.map_err(|e| self.failure(e))
     }
 
@@ -599,7 +762,9 @@ impl FrameSink for Encoder {
             return Err(unshear::Error::Video("the encoder is closed".into()));
         };
         // Closing the pipe tells ffmpeg the stream has ended; it then finishes the file.
+        let busy = self.child.busy();
         let flushed = w.finish().map(drop);
+        drop(busy);
         if let Err(e) = flushed {
             return Err(self.failure(e));
         }

@@ -12,6 +12,7 @@
 use std::fs::File;
 use std::io::{BufReader, BufWriter, IsTerminal, Read, Write};
 use std::path::{Path, PathBuf};
+use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressState, ProgressStyle};
@@ -132,7 +133,8 @@ impl Ffmpeg {
         container_in: bool,
         out: Option<&Path>,
     ) -> Result<Prepared> {
-        let tools = Tools::find(a.ffmpeg.as_deref(), why)?;
+        let timeout = (a.ffmpeg_timeout > 0).then(|| Duration::from_secs(a.ffmpeg_timeout));
+        let tools = Tools::find(a.ffmpeg.as_deref(), why, timeout)?;
         let (caps, probe) = std::thread::scope(|scope| {
             let probe = container_in.then(|| scope.spawn(|| tools.probe(&a.input)));
             let caps = tools.capabilities();
