@@ -180,9 +180,14 @@ fn decode<R: BufRead + Seek>(
         // The pixels are upright now: a copied orientation tag would turn them again.
         let _ = image::metadata::Orientation::remove_from_exif_chunk(exif);
     }
+    use image::metadata::Orientation::{Rotate270, Rotate270FlipH, Rotate90, Rotate90FlipH};
     let metadata = Metadata {
         icc_profile: icc_profile.filter(|p| !p.is_empty()),
         exif: exif.filter(|e| !e.is_empty()),
+        turned: matches!(
+            orientation,
+            Rotate90 | Rotate270 | Rotate90FlipH | Rotate270FlipH
+        ),
     };
     Ok((img, metadata))
 }
@@ -198,6 +203,11 @@ pub struct Metadata {
     /// The EXIF block (TIFF-structured, without the JPEG `Exif\0\0` prefix), its orientation
     /// tag reset to "upright" as the pixels read are upright.
     pub exif: Option<Vec<u8>>,
+    /// Whether the EXIF orientation turned the pixels a quarter (a phone held upright): the
+    /// camera then read the picture out column by column, not row by row (see
+    /// [`ImageReport::refuse_turned`](crate::ImageReport::refuse_turned)). Read only: nothing
+    /// of it is written.
+    pub turned: bool,
 }
 
 /// Whether an ICC profile describes pixels of `img`'s kind: its colour space (bytes 16..20 of
@@ -829,6 +839,21 @@ mod tests {
         );
     }
 
+    #[test]
+    fn quarter_turns_are_told_apart() {
+        let img = RgbImage::from_fn(8, 4, |x, y| Rgb([smooth(x, y, 0), 0, 0]));
+        let dir = tempfile::tempdir().unwrap();
+        for orientation in 1..=8u8 {
+            let path = dir.path().join(format!("{orientation}.jpg"));
+            std::fs::write(&path, jpeg_with_orientation(&img, orientation)).unwrap();
+            let (read, meta) = read_image_with_metadata(&path, DEFAULT_MAX_PIXELS).unwrap();
+            // 5 to 8 transpose (turned a quarter, mirrored or not); 1 to 4 keep the axes.
+            assert_eq!(meta.turned, orientation >= 5, "{orientation}");
+            let turned_size = if orientation >= 5 { (4, 8) } else { (8, 4) };
+            assert_eq!(read.dimensions(), turned_size, "{orientation}");
+        }
+    }
+
     /// A made-up ICC profile of colour space `space`: only its header is looked at here.
     fn fake_profile(space: &[u8; 4]) -> Vec<u8> {
         let mut p: Vec<u8> = (0..200u8).collect();
@@ -847,6 +872,7 @@ mod tests {
             read_image_with_metadata(&path, DEFAULT_MAX_PIXELS).unwrap()
         };
         assert_eq!(upright.dimensions(), (16, 32));
+        assert!(meta.turned, "orientation 6 turns the picture a quarter");
         let exif = meta.exif.clone().expect("the EXIF block is read");
         assert_eq!(
             image::metadata::Orientation::from_exif_chunk(&exif),
@@ -897,7 +923,7 @@ mod tests {
         let opts = WriteOptions {
             metadata: Metadata {
                 icc_profile: Some(fake_profile(b"CMYK")),
-                exif: None,
+                ..Metadata::default()
             },
             ..WriteOptions::default()
         };

@@ -412,3 +412,106 @@ fn corrected_photos_keep_their_profile_and_exif() {
         assert_eq!(meta.exif.as_ref(), Some(&exif), "{name}");
     }
 }
+
+/// A JPEG of `img` whose EXIF block holds `orientation` (big-endian TIFF, one entry).
+fn jpeg_with_orientation(img: &image::RgbImage, orientation: u8, path: &Path) {
+    use image::ImageEncoder;
+    let mut exif = b"MM\x00\x2a\x00\x00\x00\x08\x00\x01".to_vec();
+    exif.extend_from_slice(&[
+        0x01,
+        0x12,
+        0,
+        3,
+        0,
+        0,
+        0,
+        1,
+        0,
+        orientation,
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+    ]);
+    let mut jpeg = Vec::new();
+    let mut encoder = image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpeg, 95);
+    encoder.set_exif_metadata(exif).expect("exif");
+    encoder
+        .write_image(
+            img,
+            img.width(),
+            img.height(),
+            image::ExtendedColorType::Rgb8,
+        )
+        .expect("encode");
+    std::fs::write(path, jpeg).expect("write");
+}
+
+/// A picture its EXIF orientation turns a quarter (a phone held upright) was read out column
+/// by column: its faces are found upright, but no estimate is accepted and nothing is
+/// corrected (a shear measured along its rows would turn it). Turned by half (180 degrees),
+/// rows are still rows and the shear is measured as usual.
+#[test]
+fn pictures_turned_a_quarter_are_not_corrected() {
+    let dir = tempfile::tempdir().expect("temp");
+    let face = image::open(fixture("subject01.normal.jpeg"))
+        .expect("fixture")
+        .to_rgb8();
+    // Upright as shown, sheared by 0.3 along the shown rows.
+    let shown = unshear::warp::apply_shear(
+        &image::DynamicImage::ImageRgb8(face),
+        unshear::Shear::about_middle(0.3, 243),
+        unshear::warp::Interpolation::Linear,
+        unshear::warp::Canvas::Expand,
+    )
+    .0
+    .to_rgb8();
+    let cases = [
+        // 6: turned 90 degrees clockwise for display; the file holds it turned back.
+        ("quarter.jpg", 6, image::imageops::rotate270(&shown)),
+        ("half.jpg", 3, image::imageops::rotate180(&shown)),
+    ];
+    for (name, orientation, stored) in &cases {
+        jpeg_with_orientation(stored, *orientation, &dir.path().join(name));
+    }
+    let estimate = |name: &str| {
+        let out = unshear()
+            .args(["estimate", "--json"])
+            .arg(dir.path().join(name))
+            .assert()
+            .success()
+            .get_output()
+            .clone();
+        json_lines(&out.stdout).remove(0)
+    };
+
+    let half = estimate("half.jpg");
+    let k = half["k"].as_f64().expect("half turn: measured");
+    assert!((k - 0.3).abs() < 0.05, "{half}");
+
+    let quarter = estimate("quarter.jpg");
+    assert!(quarter["k"].is_null(), "{quarter}");
+    let faces = quarter["faces"].as_array().expect("faces");
+    assert_eq!(faces.len(), 1, "the face is found upright: {quarter}");
+    assert_eq!(faces[0]["refused"], "turned_picture", "{quarter}");
+    assert!(quarter["warnings"].to_string().contains("turned a quarter"));
+
+    let out = dir.path().join("quarter.fixed.jpg");
+    let run = unshear()
+        .arg("correct")
+        .arg(dir.path().join("quarter.jpg"))
+        .arg("-o")
+        .arg(&out)
+        .assert()
+        .success()
+        .get_output()
+        .clone();
+    assert!(!out.exists(), "nothing is written");
+    assert!(
+        stderr_of(&run).contains("turned a quarter by its EXIF orientation"),
+        "{}",
+        stderr_of(&run)
+    );
+}

@@ -32,6 +32,11 @@ pub enum Refusal {
     /// [`ROLLED_HEAD`](crate::pipeline::ROLLED_HEAD) and measured strongly sheared: its shear
     /// reading is unreliable.
     UnreliablePose,
+    /// The picture was turned a quarter by its EXIF orientation (a phone held upright), so the
+    /// camera read it out column by column: its skew is a vertical shear, which the model (a
+    /// shear along the rows) cannot measure; read as one, it would turn the picture instead of
+    /// straightening it (see [`ImageReport::refuse_turned`]).
+    TurnedPicture,
 }
 
 impl Refusal {
@@ -43,6 +48,7 @@ impl Refusal {
             Self::OutsideImage => "outside_image",
             Self::NotFaceLike => "not_face_like",
             Self::UnreliablePose => "unreliable_pose",
+            Self::TurnedPicture => "turned_picture",
         }
     }
 }
@@ -130,6 +136,31 @@ pub struct ImageReport {
 }
 
 impl ImageReport {
+    /// Refuses every accepted estimate, for a picture its EXIF orientation turned a quarter
+    /// ([`Metadata::turned`](crate::imageio::Metadata::turned)): the camera read its columns
+    /// one after another, so a moving camera skews it vertically, `y' = y + c x`. Seen through
+    /// the row model, such a skew reads as a roll of about `atan c` plus a shear of about `c`
+    /// (`[1 0; c 1]` = `S(tan t) R(t)` times a slight stretch, `sin 2t = 2c`), and correcting
+    /// that shear would leave the picture turned by `t`, 18 degrees at `c` = 0.3.
+    pub fn refuse_turned(&mut self) {
+        for f in &mut self.faces {
+            if f.k.take().is_some() {
+                f.refused = Some(Refusal::TurnedPicture);
+                f.outvoted = false;
+            }
+        }
+        self.k = None;
+        self.faces_disagree = false;
+        if !self.faces.is_empty() {
+            self.warnings.push(
+                "the picture is turned a quarter by its EXIF orientation (taken with the camera \
+                 upright): it was read out column by column, and its skew is not a shear along \
+                 the rows that unshear measures; not corrected"
+                    .to_string(),
+            );
+        }
+    }
+
     /// The marks [`crate::annotate::draw_annotations`] draws for these faces (the face axis of
     /// a refused estimate is drawn too, with the shear that was measured: the picture shows what
     /// was found).

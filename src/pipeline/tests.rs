@@ -887,3 +887,38 @@ fn a_correction_changes_the_image_only_with_a_shear_to_apply() {
     assert!(options(Region::Image, Some(0.1)).changes(&empty));
     assert!(!options(Region::Face, Some(0.1)).changes(&empty));
 }
+
+#[test]
+fn a_turned_picture_has_every_estimate_refused_and_says_why() {
+    let mut report = ImageReport {
+        k: Some(0.3),
+        faces: vec![face(Some(0.3), 0.9), face(None, 0.2)],
+        faces_disagree: false,
+        warnings: vec![],
+        width: 10,
+        height: 10,
+    };
+    report.faces[0].outvoted = true;
+    report.refuse_turned();
+    assert_eq!(report.k, None);
+    assert_eq!(report.faces[0].k, None);
+    assert_eq!(report.faces[0].refused, Some(Refusal::TurnedPicture));
+    assert!(!report.faces[0].outvoted);
+    assert_eq!(report.faces[0].k_measured, 0.3, "what was measured is kept");
+    // A face refused for its own reason keeps it.
+    assert_eq!(report.faces[1].refused, Some(Refusal::LowConfidence));
+    assert_eq!(report.warnings.len(), 1);
+    assert!(!CorrectOptions::default().changes(&report));
+    assert_eq!(Refusal::TurnedPicture.name(), "turned_picture");
+    // Without faces there is nothing to say.
+    let mut empty = ImageReport {
+        k: None,
+        faces: vec![],
+        faces_disagree: false,
+        warnings: vec![],
+        width: 10,
+        height: 10,
+    };
+    empty.refuse_turned();
+    assert!(empty.warnings.is_empty());
+}

@@ -118,6 +118,16 @@ fn no_shear_reason(report: &ImageReport) -> String {
     if report.faces.is_empty() {
         return "no face found".to_string();
     }
+    if report
+        .faces
+        .iter()
+        .any(|f| f.refused == Some(Refusal::TurnedPicture))
+    {
+        return "the picture is turned a quarter by its EXIF orientation (taken with the camera \
+                upright), so it was read out column by column: its skew is not the shear along \
+                the rows that unshear measures"
+            .to_string();
+    }
     if report.faces_disagree {
         return format!(
             "no trustworthy shear: the {} faces' estimates disagree with no consistent majority",
@@ -134,6 +144,7 @@ fn no_shear_reason(report: &ImageReport) -> String {
                 Refusal::OutsideImage => "outside the image",
                 Refusal::NotFaceLike => "not face-like",
                 Refusal::UnreliablePose => "tipped and rolled head",
+                Refusal::TurnedPicture => "turned picture",
             };
             Some(format!(
                 "{why} (k_measured {:+.3}, confidence {:.2})",
@@ -149,9 +160,17 @@ fn no_shear_reason(report: &ImageReport) -> String {
 }
 
 /// The estimate of a decoded input, with a warning first when the decode is mostly without data
-/// ([`imageio::missing_data_warning`]).
-fn estimate_with_warnings(unshear: &Unshear, img: &image::DynamicImage) -> ImageReport {
+/// ([`imageio::missing_data_warning`]), and every estimate refused when its EXIF orientation
+/// turned it a quarter ([`ImageReport::refuse_turned`]).
+fn estimate_with_warnings(
+    unshear: &Unshear,
+    img: &image::DynamicImage,
+    metadata: &imageio::Metadata,
+) -> ImageReport {
     let mut report = unshear.estimate(img);
+    if metadata.turned {
+        report.refuse_turned();
+    }
     if let Some(w) = imageio::missing_data_warning(img) {
         report.warnings.insert(0, w);
     }
@@ -230,9 +249,10 @@ fn estimate(a: EstimateArgs) -> Result<bool> {
         interrupt::flag(),
         |input| -> Result<ImageReport, String> {
             let input = input.as_ref().map_err(|(_, e)| e.clone())?;
-            let img =
-                imageio::read_image(&input.path, a.model.max_pixels).map_err(|e| e.to_string())?;
-            Ok(estimate_with_warnings(&unshear, &img))
+            let (img, metadata) =
+                imageio::read_image_with_metadata(&input.path, a.model.max_pixels)
+                    .map_err(|e| e.to_string())?;
+            Ok(estimate_with_warnings(&unshear, &img, &metadata))
         },
         |input, result, bar| {
             let file = match input {
@@ -434,7 +454,7 @@ fn correct_one(
         }
     }
     let (img, metadata) = imageio::read_image_with_metadata(&input.path, a.model.max_pixels)?;
-    let report = estimate_with_warnings(unshear, &img);
+    let report = estimate_with_warnings(unshear, &img, &metadata);
     if let Some(annotate) = &a.annotate {
         create_parent(annotate)?;
         let picture = unshear::annotate::draw_annotations(&img, &report.marks());
