@@ -25,7 +25,7 @@ use ::image::DynamicImage;
 use unshear::imageio::{self, WriteOptions, DEFAULT_MAX_PIXELS};
 use unshear::pipeline::{CorrectOptions, Region};
 use unshear::warp::{Canvas, Interpolation};
-use unshear::{Error, ImageReport, Shear};
+use unshear::{Error, ImageReport, Refusal, Shear};
 
 use crate::config::{build, PyConfig, Use};
 use crate::image::{from_array, to_array, Input, Layout};
@@ -258,17 +258,74 @@ impl PyUnshear {
                 },
             };
             if !options.changes(&report) {
-                return Err(NoFaceError::new_err(if options.k.is_some() {
-                    "no face found: a face-region correction needs a detected face"
-                } else {
-                    "no face found with an accepted estimate; give k= to correct anyway"
-                }));
+                return Err(NoFaceError::new_err(no_change_reason(&report, &options)));
             }
             self.inner
                 .correct(&image, &report, &options)
                 .map_err(to_pyerr)
         })?;
         to_array(py, result, layout)
+    }
+
+    /// ``estimate`` of an image file, as ``unshear estimate FILE`` reports it: a photo its EXIF
+    /// orientation turns a quarter has its estimates refused (``"turned_picture"``).
+    fn estimate_file(&self, py: Python<'_>, path: PathBuf) -> PyResult<Report> {
+        let max_pixels = self.max_pixels;
+        let inner = py
+            .detach(|| {
+                let (img, metadata) = imageio::read_image_with_metadata(&path, max_pixels)?;
+                Ok::<_, Error>(self.inner.estimate_photo(&img, &metadata))
+            })
+            .map_err(to_pyerr)?;
+        Ok(Report { inner })
+    }
+
+    /// Corrects the image file ``src`` into ``dst`` as ``unshear correct`` does: the colour
+    /// profile and EXIF block kept, written atomically, never over ``src``.
+    #[pyo3(signature = (src, dst, k = None, *, region = "image", canvas = "same", interp = "linear", overwrite = false, jpeg_quality = 95))]
+    #[allow(clippy::too_many_arguments)]
+    fn correct_file(
+        &self,
+        py: Python<'_>,
+        src: PathBuf,
+        dst: PathBuf,
+        #[pyo3(from_py_with = args::optional_k)] k: Option<f64>,
+        region: &str,
+        canvas: &str,
+        interp: &str,
+        overwrite: bool,
+        #[pyo3(from_py_with = args::jpeg_quality)] jpeg_quality: u8,
+    ) -> PyResult<Report> {
+        check_output_format(&dst)?;
+        let options = CorrectOptions {
+            region: region_of(region)?,
+            canvas: canvas_of(canvas)?,
+            interpolation: interp_of(interp)?,
+            k,
+        };
+        let max_pixels = self.max_pixels;
+        let inner = py.detach(|| -> PyResult<ImageReport> {
+            let (img, metadata) =
+                imageio::read_image_with_metadata(&src, max_pixels).map_err(to_pyerr)?;
+            let report = self.inner.estimate_photo(&img, &metadata);
+            if !options.changes(&report) {
+                return Err(NoFaceError::new_err(no_change_reason(&report, &options)));
+            }
+            let fixed = self
+                .inner
+                .correct(&img, &report, &options)
+                .map_err(to_pyerr)?;
+            drop(img);
+            let write = WriteOptions {
+                overwrite,
+                jpeg_quality,
+                protected: vec![src.clone()],
+                metadata,
+            };
+            imageio::write_image_atomic(&fixed, &dst, write).map_err(to_pyerr)?;
+            Ok(report)
+        })?;
+        Ok(Report { inner })
     }
 
     /// ``Unshear(...)`` with the settings that differ from the defaults.
@@ -307,6 +364,34 @@ fn read(
     to_array(py, img, Layout { two_d, bgr })
 }
 
+/// Why correcting with `report` would change nothing (see [`CorrectOptions::changes`]).
+fn no_change_reason(report: &ImageReport, options: &CorrectOptions) -> &'static str {
+    let turned = report
+        .faces
+        .iter()
+        .any(|f| f.refused == Some(Refusal::TurnedPicture));
+    if turned {
+        "the picture is turned a quarter by its EXIF orientation (taken with the camera upright): \
+         it was read out column by column, and its skew is not a shear along the rows; give k= \
+         to correct anyway"
+    } else if options.k.is_some() {
+        "no face found: a face-region correction needs a detected face"
+    } else {
+        "no face found with an accepted estimate; give k= to correct anyway"
+    }
+}
+
+/// An error for an output path whose extension names no format `write` writes.
+fn check_output_format(path: &std::path::Path) -> PyResult<()> {
+    if imageio::output_format_supported(path) {
+        return Ok(());
+    }
+    Err(PyValueError::new_err(format!(
+        "{}: unsupported output format (use .jpg, .png, .pgm/.ppm, .bmp, .tif or .webp)",
+        path.display()
+    )))
+}
+
 /// Writes an image array to ``path`` (format from the extension), atomically.
 #[pyfunction]
 #[pyo3(signature = (path, image, *, bgr = false, overwrite = true, jpeg_quality = 95))]
@@ -318,12 +403,7 @@ fn write(
     overwrite: bool,
     #[pyo3(from_py_with = args::jpeg_quality)] jpeg_quality: u8,
 ) -> PyResult<()> {
-    if !imageio::output_format_supported(&path) {
-        return Err(PyValueError::new_err(format!(
-            "{}: unsupported output format (use .jpg, .png, .pgm/.ppm, .bmp, .tif or .webp)",
-            path.display()
-        )));
-    }
+    check_output_format(&path)?;
     let input = from_array(py, image, bgr, u64::MAX)?;
     let options = WriteOptions {
         overwrite,

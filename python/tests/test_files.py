@@ -68,3 +68,59 @@ def test_file_errors_are_os_errors(tmp_path: Path) -> None:
         unshear.write(tmp_path / "no" / "such" / "folder.png", np.zeros((4, 4), np.uint8))
     with pytest.raises(TypeError):
         unshear.read(5)  # type: ignore[arg-type]
+
+
+def exif_jpeg(image: np.ndarray, orientation: int, path: Path) -> None:
+    """A JPEG of ``image`` (written by unshear) with an EXIF segment holding ``orientation``
+    inserted after its start marker (a big-endian TIFF block of one entry)."""
+    unshear.write(path, image)
+    data = path.read_bytes()
+    tiff = b"MM\x00\x2a\x00\x00\x00\x08\x00\x01" + bytes(
+        [0x01, 0x12, 0, 3, 0, 0, 0, 1, 0, orientation, 0, 0, 0, 0, 0, 0]
+    )
+    app1 = b"\xff\xe1" + (2 + 6 + len(tiff)).to_bytes(2, "big") + b"Exif\x00\x00" + tiff
+    path.write_bytes(data[:2] + app1 + data[2:])
+
+
+def test_correct_file_keeps_exif_and_never_writes_over_its_input(
+    corrector: unshear.Unshear, tmp_path: Path
+) -> None:
+    sheared = unshear.distort(unshear.read(FACES[0]), 0.3, canvas="expand")
+    src = tmp_path / "in.jpg"
+    exif_jpeg(sheared, 1, src)
+    before = src.read_bytes()
+    dst = tmp_path / "out.jpg"
+    report = corrector.correct_file(src, dst)
+    assert report.k is not None and abs(report.k - 0.3) < 0.05, report
+    assert report == corrector.estimate_file(src)
+    assert b"Exif\x00\x00" in dst.read_bytes()[:200], "the EXIF block is kept"
+    # What is written is what correct() gives on the same pixels.
+    fixed = corrector.correct(unshear.read(src), report=report)
+    assert np.abs(unshear.read(dst).astype(int) - fixed).mean() < 2.0  # JPEG's loss
+    with pytest.raises(FileExistsError):
+        corrector.correct_file(src, dst)
+    corrector.correct_file(src, dst, 0.1, overwrite=True)
+    with pytest.raises(FileExistsError):
+        corrector.correct_file(src, src, overwrite=True)
+    assert src.read_bytes() == before
+    with pytest.raises(ValueError, match="unsupported output format"):
+        corrector.correct_file(src, tmp_path / "out.gif")
+    with pytest.raises(FileNotFoundError):
+        corrector.correct_file(tmp_path / "missing.jpg", tmp_path / "x.jpg")
+
+
+def test_photos_turned_a_quarter_are_refused(corrector: unshear.Unshear, tmp_path: Path) -> None:
+    """Orientation 6 (a phone held upright): the file holds the picture turned back, read out
+    column by column; its face is found upright, its estimate refused, nothing written."""
+    shown = unshear.distort(unshear.read(FACES[0]), 0.3, canvas="expand")
+    src = tmp_path / "turned.jpg"
+    exif_jpeg(np.ascontiguousarray(np.rot90(shown, 1)), 6, src)
+    assert unshear.read(src).shape == shown.shape, "read turns it upright"
+    report = corrector.estimate_file(src)
+    assert report.k is None and len(report.faces) == 1, report
+    assert report.faces[0].refused == "turned_picture"
+    assert any("turned a quarter" in w for w in report.warnings)
+    dst = tmp_path / "out.jpg"
+    with pytest.raises(unshear.NoFaceError, match="turned a quarter"):
+        corrector.correct_file(src, dst)
+    assert not dst.exists()

@@ -104,7 +104,7 @@ class Face:
     # Compared by value, so unhashable; pickled and copied whole (every property, not only
     # those of to_dict()).
     __hash__: ClassVar[None]  # type: ignore[assignment]
-    def __eq__(self, other: object) -> bool: ...
+    def __eq__(self, value: object, /) -> bool: ...
 
 @final
 class Report:
@@ -134,7 +134,7 @@ class Report:
     # Compared by value, so unhashable; pickled and copied whole (every property, not only
     # those of to_dict()).
     __hash__: ClassVar[None]  # type: ignore[assignment]
-    def __eq__(self, other: object) -> bool: ...
+    def __eq__(self, value: object, /) -> bool: ...
 
 @final
 class Unshear:
@@ -238,6 +238,32 @@ class Unshear:
 
         Raises ``NoFaceError`` (a ``ValueError``) when no face gave an accepted estimate and no
         ``k`` was given, ``ValueError`` for a NaN or infinite ``k``.
+        """
+    def estimate_file(self, path: PathLike) -> Report:
+        """``estimate`` of an image file, as ``unshear estimate FILE`` reports it: a photo its
+        EXIF orientation turns a quarter (a phone held upright) was read out column by column,
+        so its estimates are refused (``"turned_picture"``). Raises ``OSError`` as ``read``."""
+    def correct_file(
+        self,
+        src: PathLike,
+        dst: PathLike,
+        k: float | None = None,
+        *,
+        region: Region = "image",
+        canvas: Canvas = "same",
+        interp: Interp = "linear",
+        overwrite: bool = False,
+        jpeg_quality: int = 95,
+    ) -> Report:
+        """Corrects the file ``src`` into ``dst`` (format from its extension) as ``unshear
+        correct`` does, and returns the report it corrected by: the colour profile and EXIF
+        block kept, ``dst`` written through a temporary file, never over ``src``, and an
+        existing ``dst`` only with ``overwrite=True``. Options as ``correct``.
+
+        Raises ``NoFaceError`` when there is nothing to correct by (no accepted estimate, or a
+        photo turned a quarter by its EXIF orientation) and no ``k`` was given, with nothing
+        written; ``FileExistsError`` for an existing ``dst`` or ``dst`` naming ``src``;
+        ``OSError`` as ``read``; ``ValueError`` for an unsupported output format.
         """
 
 @final

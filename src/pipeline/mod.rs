@@ -251,6 +251,27 @@ impl Unshear {
         self.estimate_gray(&Self::gray(img))
     }
 
+    /// [`Self::estimate`] of a photo read with its [`Metadata`](crate::imageio::Metadata)
+    /// ([`read_image_with_metadata`](crate::imageio::read_image_with_metadata)), as the CLI
+    /// reports it: a warning first when the decode is mostly without data
+    /// ([`missing_data_warning`](crate::imageio::missing_data_warning)), and every estimate
+    /// refused when the EXIF orientation turned the photo a quarter
+    /// ([`ImageReport::refuse_turned`]).
+    pub fn estimate_photo(
+        &self,
+        img: &DynamicImage,
+        metadata: &crate::imageio::Metadata,
+    ) -> ImageReport {
+        let mut report = self.estimate(img);
+        if metadata.turned {
+            report.refuse_turned();
+        }
+        if let Some(w) = crate::imageio::missing_data_warning(img) {
+            report.warnings.insert(0, w);
+        }
+        report
+    }
+
     /// [`Self::estimate`] on a greyscale image.
     pub fn estimate_gray(&self, gray: &GrayImage) -> ImageReport {
         let mut faces: Vec<FaceReport> = self

@@ -159,24 +159,6 @@ fn no_shear_reason(report: &ImageReport) -> String {
     )
 }
 
-/// The estimate of a decoded input, with a warning first when the decode is mostly without data
-/// ([`imageio::missing_data_warning`]), and every estimate refused when its EXIF orientation
-/// turned it a quarter ([`ImageReport::refuse_turned`]).
-fn estimate_with_warnings(
-    unshear: &Unshear,
-    img: &image::DynamicImage,
-    metadata: &imageio::Metadata,
-) -> ImageReport {
-    let mut report = unshear.estimate(img);
-    if metadata.turned {
-        report.refuse_turned();
-    }
-    if let Some(w) = imageio::missing_data_warning(img) {
-        report.warnings.insert(0, w);
-    }
-    report
-}
-
 /// One failed input: its JSON line (with `--json`) and one line on stderr naming the file.
 fn report_failure(json: bool, file: &str, error: String, bar: &indicatif::ProgressBar) {
     let error = one_line(file, &error);
@@ -252,7 +234,7 @@ fn estimate(a: EstimateArgs) -> Result<bool> {
             let (img, metadata) =
                 imageio::read_image_with_metadata(&input.path, a.model.max_pixels)
                     .map_err(|e| e.to_string())?;
-            Ok(estimate_with_warnings(&unshear, &img, &metadata))
+            Ok(unshear.estimate_photo(&img, &metadata))
         },
         |input, result, bar| {
             let file = match input {
@@ -454,7 +436,7 @@ fn correct_one(
         }
     }
     let (img, metadata) = imageio::read_image_with_metadata(&input.path, a.model.max_pixels)?;
-    let report = estimate_with_warnings(unshear, &img, &metadata);
+    let report = unshear.estimate_photo(&img, &metadata);
     if let Some(annotate) = &a.annotate {
         create_parent(annotate)?;
         let picture = unshear::annotate::draw_annotations(&img, &report.marks());
