@@ -205,8 +205,8 @@ pub struct Metadata {
     pub exif: Option<Vec<u8>>,
     /// Whether the EXIF orientation turned the pixels a quarter (a phone held upright): the
     /// camera then read the picture out column by column, not row by row (see
-    /// [`ImageReport::refuse_turned`](crate::ImageReport::refuse_turned)). Read only: nothing
-    /// of it is written.
+    /// [`Unshear::read_by_columns`](crate::Unshear::read_by_columns)). Read only: nothing of it
+    /// is written.
     pub turned: bool,
 }
 

@@ -77,7 +77,7 @@ pub use config::{Config, Detector, FaceSearch, Locator};
 pub use error::{Error, Result};
 pub use geometry::{Point, Rect, Shear};
 pub use pipeline::{
-    CorrectOptions, FaceReport, FaceStart, ImageReport, Models, Refusal, Region, Unshear,
+    CorrectOptions, FaceReport, FaceStart, ImageReport, Models, Readout, Refusal, Region, Unshear,
 };
 
 /// The README's Rust example, compiled as a doctest so it cannot go stale.

@@ -450,28 +450,36 @@ fn jpeg_with_orientation(img: &image::RgbImage, orientation: u8, path: &Path) {
 }
 
 /// A picture its EXIF orientation turns a quarter (a phone held upright) was read out column
-/// by column: its faces are found upright, but no estimate is accepted and nothing is
-/// corrected (a shear measured along its rows would turn it). Turned by half (180 degrees),
-/// rows are still rows and the shear is measured as usual.
+/// by column, so a pan skews it vertically: its faces are found upright, the vertical shear is
+/// measured (`"readout": "columns"`) and undone along the columns. Turned by half (180
+/// degrees), rows stay rows, and the same picture sheared along its rows reads as usual.
 #[test]
-fn pictures_turned_a_quarter_are_not_corrected() {
+fn pictures_turned_a_quarter_are_corrected_along_their_columns() {
+    use image::DynamicImage;
     let dir = tempfile::tempdir().expect("temp");
-    let face = image::open(fixture("subject01.normal.jpeg"))
-        .expect("fixture")
-        .to_rgb8();
-    // Upright as shown, sheared by 0.3 along the shown rows.
-    let shown = unshear::warp::apply_shear(
-        &image::DynamicImage::ImageRgb8(face),
-        unshear::Shear::about_middle(0.3, 243),
-        unshear::warp::Interpolation::Linear,
-        unshear::warp::Canvas::Expand,
-    )
-    .0
-    .to_rgb8();
+    let face = image::open(fixture("subject01.normal.jpeg")).expect("fixture");
+    let (w, h) = (face.width(), face.height());
+    // The face on a wider grey canvas, so that a vertical shear keeps it inside.
+    let mut wide = image::RgbImage::from_pixel(w + 160, h, image::Rgb([128, 128, 128]));
+    image::imageops::overlay(&mut wide, &face.to_rgb8(), 80, 0);
+    let wide = DynamicImage::ImageRgb8(wide);
+    let shear = |img: &DynamicImage, k: f64| {
+        unshear::warp::apply_shear(
+            img,
+            unshear::Shear::about_middle(k, img.height()),
+            unshear::warp::Interpolation::Linear,
+            unshear::warp::Canvas::Same,
+        )
+        .0
+    };
+    let transpose = |img: &DynamicImage| img.rotate90().fliph();
+    // Upright as shown, sheared by 0.3 along the shown columns, and along the rows.
+    let vertical = transpose(&shear(&transpose(&wide), 0.3)).to_rgb8();
+    let horizontal = shear(&wide, 0.3).to_rgb8();
     let cases = [
         // 6: turned 90 degrees clockwise for display; the file holds it turned back.
-        ("quarter.jpg", 6, image::imageops::rotate270(&shown)),
-        ("half.jpg", 3, image::imageops::rotate180(&shown)),
+        ("quarter.jpg", 6, image::imageops::rotate270(&vertical)),
+        ("half.jpg", 3, image::imageops::rotate180(&horizontal)),
     ];
     for (name, orientation, stored) in &cases {
         jpeg_with_orientation(stored, *orientation, &dir.path().join(name));
@@ -486,32 +494,45 @@ fn pictures_turned_a_quarter_are_not_corrected() {
             .clone();
         json_lines(&out.stdout).remove(0)
     };
-
-    let half = estimate("half.jpg");
-    let k = half["k"].as_f64().expect("half turn: measured");
-    assert!((k - 0.3).abs() < 0.05, "{half}");
-
-    let quarter = estimate("quarter.jpg");
-    assert!(quarter["k"].is_null(), "{quarter}");
-    let faces = quarter["faces"].as_array().expect("faces");
-    assert_eq!(faces.len(), 1, "the face is found upright: {quarter}");
-    assert_eq!(faces[0]["refused"], "turned_picture", "{quarter}");
-    assert!(quarter["warnings"].to_string().contains("turned a quarter"));
-
-    let out = dir.path().join("quarter.fixed.jpg");
-    let run = unshear()
+    for name in ["half.jpg", "quarter.jpg"] {
+        let line = estimate(name);
+        let k = line["k"].as_f64().expect("measured");
+        assert!((k - 0.3).abs() < 0.05, "{line}");
+        assert_eq!(line["faces"].as_array().map(Vec::len), Some(1), "{line}");
+        let columns = name == "quarter.jpg";
+        assert_eq!(line.get("readout").is_some(), columns, "{line}");
+        if columns {
+            assert_eq!(line["readout"], "columns");
+            assert!(line["warnings"].to_string().contains("column by column"));
+        }
+    }
+    let out = dir.path().join("quarter.fixed.png");
+    unshear()
         .arg("correct")
         .arg(dir.path().join("quarter.jpg"))
         .arg("-o")
         .arg(&out)
         .assert()
-        .success()
-        .get_output()
-        .clone();
-    assert!(!out.exists(), "nothing is written");
-    assert!(
-        stderr_of(&run).contains("turned a quarter by its EXIF orientation"),
-        "{}",
-        stderr_of(&run)
-    );
+        .success();
+    // Back to the upright face, to within two resamplings and JPEG's loss (grey levels, mean
+    // over the face); the input was far off.
+    let fixed = image::open(&out).expect("written").to_rgb8();
+    let wide = wide.to_rgb8();
+    let off = |img: &image::RgbImage| {
+        let (mut sum, mut n) = (0.0, 0.0);
+        for y in 40..h - 40 {
+            for x in 100..w + 60 {
+                let (a, b) = (img.get_pixel(x, y), wide.get_pixel(x, y));
+                sum += (0..3)
+                    .map(|c| (f64::from(a[c]) - f64::from(b[c])).abs())
+                    .sum::<f64>()
+                    / 3.0;
+                n += 1.0;
+            }
+        }
+        sum / n
+    };
+    assert_eq!(fixed.dimensions(), wide.dimensions());
+    assert!(off(&fixed) < 6.0, "{}", off(&fixed));
+    assert!(off(&vertical) > 12.0, "{}", off(&vertical));
 }

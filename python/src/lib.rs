@@ -25,7 +25,7 @@ use ::image::DynamicImage;
 use unshear::imageio::{self, WriteOptions, DEFAULT_MAX_PIXELS};
 use unshear::pipeline::{CorrectOptions, Region};
 use unshear::warp::{Canvas, Interpolation};
-use unshear::{Error, ImageReport, Refusal, Shear};
+use unshear::{Error, ImageReport, Readout, Shear};
 
 use crate::config::{build, PyConfig, Use};
 use crate::image::{from_array, to_array, Input, Layout};
@@ -255,10 +255,11 @@ impl PyUnshear {
                     warnings: Vec::new(),
                     width: image.width(),
                     height: image.height(),
+                    readout: Readout::Rows,
                 },
             };
             if !options.changes(&report) {
-                return Err(NoFaceError::new_err(no_change_reason(&report, &options)));
+                return Err(NoFaceError::new_err(no_change_reason(&options)));
             }
             self.inner
                 .correct(&image, &report, &options)
@@ -268,7 +269,7 @@ impl PyUnshear {
     }
 
     /// ``estimate`` of an image file, as ``unshear estimate FILE`` reports it: a photo its EXIF
-    /// orientation turns a quarter has its estimates refused (``"turned_picture"``).
+    /// orientation turns a quarter was read out by columns, and its shear is vertical.
     fn estimate_file(&self, py: Python<'_>, path: PathBuf) -> PyResult<Report> {
         let max_pixels = self.max_pixels;
         let inner = py
@@ -309,7 +310,7 @@ impl PyUnshear {
                 imageio::read_image_with_metadata(&src, max_pixels).map_err(to_pyerr)?;
             let report = self.inner.estimate_photo(&img, &metadata);
             if !options.changes(&report) {
-                return Err(NoFaceError::new_err(no_change_reason(&report, &options)));
+                return Err(NoFaceError::new_err(no_change_reason(&options)));
             }
             let fixed = self
                 .inner
@@ -365,16 +366,8 @@ fn read(
 }
 
 /// Why correcting with `report` would change nothing (see [`CorrectOptions::changes`]).
-fn no_change_reason(report: &ImageReport, options: &CorrectOptions) -> &'static str {
-    let turned = report
-        .faces
-        .iter()
-        .any(|f| f.refused == Some(Refusal::TurnedPicture));
-    if turned {
-        "the picture is turned a quarter by its EXIF orientation (taken with the camera upright): \
-         it was read out column by column, and its skew is not a shear along the rows; give k= \
-         to correct anyway"
-    } else if options.k.is_some() {
+fn no_change_reason(options: &CorrectOptions) -> &'static str {
+    if options.k.is_some() {
         "no face found: a face-region correction needs a detected face"
     } else {
         "no face found with an accepted estimate; give k= to correct anyway"

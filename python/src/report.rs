@@ -7,7 +7,7 @@ use pyo3::types::{PyDict, PyList, PyType};
 use serde::de::DeserializeOwned;
 use serde::Serialize;
 
-use unshear::{FaceReport, ImageReport, Point};
+use unshear::{FaceReport, ImageReport, Point, Readout};
 
 type Pair = (f64, f64);
 
@@ -221,6 +221,17 @@ impl Report {
         self.inner.faces_disagree
     }
 
+    /// ``"rows"``, or ``"columns"`` for a photo its EXIF orientation turns a quarter (a phone
+    /// held upright), read out column by column: its ``k`` is the vertical shear
+    /// ``y' = y + k x`` (``correct`` undoes it so).
+    #[getter]
+    fn readout(&self) -> &'static str {
+        match self.inner.readout {
+            Readout::Rows => "rows",
+            Readout::Columns => "columns",
+        }
+    }
+
     /// What the caller should know about this image (views skipped, data missing, ...).
     #[getter]
     fn warnings(&self) -> Vec<String> {
@@ -238,6 +249,9 @@ impl Report {
         d.set_item("faces", faces)?;
         d.set_item("faces_disagree", self.inner.faces_disagree)?;
         d.set_item("warnings", self.inner.warnings.clone())?;
+        if self.inner.readout == Readout::Columns {
+            d.set_item("readout", "columns")?;
+        }
         Ok(d)
     }
 

@@ -127,6 +127,11 @@ class Report:
     def faces_disagree(self) -> bool:
         """Whether the faces' estimates disagree with no consistent majority (``k`` is ``None``)."""
     @property
+    def readout(self) -> Literal["rows", "columns"]:
+        """``"rows"``, or ``"columns"`` for a photo its EXIF orientation turns a quarter (a
+        phone held upright; ``estimate_file``), read out column by column: ``k`` is then the
+        vertical shear ``y' = y + k x``, and ``correct`` undoes it so."""
+    @property
     def warnings(self) -> list[str]:
         """What the caller should know about this image (views skipped, data missing, ...)."""
     def to_dict(self) -> dict[str, Any]:
@@ -242,7 +247,8 @@ class Unshear:
     def estimate_file(self, path: PathLike) -> Report:
         """``estimate`` of an image file, as ``unshear estimate FILE`` reports it: a photo its
         EXIF orientation turns a quarter (a phone held upright) was read out column by column,
-        so its estimates are refused (``"turned_picture"``). Raises ``OSError`` as ``read``."""
+        and its shear is measured as the vertical one (``readout == "columns"``). Raises
+        ``OSError`` as ``read``."""
     def correct_file(
         self,
         src: PathLike,
@@ -260,9 +266,9 @@ class Unshear:
         block kept, ``dst`` written through a temporary file, never over ``src``, and an
         existing ``dst`` only with ``overwrite=True``. Options as ``correct``.
 
-        Raises ``NoFaceError`` when there is nothing to correct by (no accepted estimate, or a
-        photo turned a quarter by its EXIF orientation) and no ``k`` was given, with nothing
-        written; ``FileExistsError`` for an existing ``dst`` or ``dst`` naming ``src``;
+        A photo turned a quarter by its EXIF orientation is corrected along its columns (see
+        ``Report.readout``), also by a given ``k``. Raises ``NoFaceError`` when there is nothing
+        to correct by (no accepted estimate) and no ``k`` was given, with nothing written; ``FileExistsError`` for an existing ``dst`` or ``dst`` naming ``src``;
         ``OSError`` as ``read``; ``ValueError`` for an unsupported output format.
         """
 

@@ -2,11 +2,16 @@
 
 use image::DynamicImage;
 
-use super::report::{CorrectOptions, ImageReport, Region};
+use super::report::{CorrectOptions, ImageReport, Readout, Region};
 use super::Unshear;
 use crate::error::{Error, Result};
 use crate::geometry::Shear;
 use crate::warp;
+
+/// `img` with its rows and columns swapped (`(x, y)` to `(y, x)`).
+fn transpose(img: &DynamicImage) -> DynamicImage {
+    img.rotate90().fliph()
+}
 
 /// How much a face box is enlarged (each side, as a fraction of its size) to make the region that
 /// a face-region correction changes: the margin takes in hair and jaw, and the warp's feathered
@@ -18,14 +23,29 @@ impl Unshear {
     ///
     /// Whole image: rows shifted by `-k (y - H/2)`. Faces: each face region (its box enlarged by
     /// [`FACE_REGION_MARGIN`]) de-sheared about its own centre with its own `k`, feathered into the
-    /// untouched surroundings. Fails with [`Error::InvalidArgument`] when there is no shear to
-    /// apply (no face and no `options.k`) or the shear is not finite.
+    /// untouched surroundings. A report read out by columns ([`Readout::Columns`]) is undone
+    /// along the columns: the same warp on the transposed image, columns shifted by
+    /// `-k (x - W/2)`. Fails with [`Error::InvalidArgument`] when there is no shear to apply
+    /// (no face and no `options.k`) or the shear is not finite.
     pub fn correct(
         &self,
         img: &DynamicImage,
         report: &ImageReport,
         options: &CorrectOptions,
     ) -> Result<DynamicImage> {
+        if report.readout == Readout::Columns {
+            // Transposing swaps rows and columns (and the faces' boxes with them): a vertical
+            // shear becomes a horizontal one, undone as any other, and the result is turned back.
+            let mut rows = report.clone();
+            rows.readout = Readout::Rows;
+            (rows.width, rows.height) = (report.height, report.width);
+            for f in &mut rows.faces {
+                let b = f.face_box;
+                f.face_box = crate::geometry::Rect::new(b.y, b.x, b.height, b.width);
+            }
+            let out = self.correct(&transpose(img), &rows, options)?;
+            return Ok(transpose(&out));
+        }
         if let Some(k) = options.k {
             if !k.is_finite() {
                 return Err(Error::InvalidArgument(format!("shear {k} is not finite")));

@@ -35,7 +35,7 @@ pub use combine::{combined_shear, consensus, Consensus, FACE_UNCERTAINTY};
 pub use correct::FACE_REGION_MARGIN;
 pub use face::FaceStart;
 pub use proposals::{box_from_eyes, follows, FOLLOW_MAX_MOVE, FOLLOW_MAX_SCALE};
-pub use report::{CorrectOptions, FaceReport, ImageReport, Refusal, Region};
+pub use report::{CorrectOptions, FaceReport, ImageReport, Readout, Refusal, Region};
 pub use search::{
     Detection, DEFAULT_ROLL_HYPOTHESES, DEFAULT_SHEAR_HYPOTHESES, MAX_VIEW_PIXELS_RATIO,
     THOROUGH_ROLL_HYPOTHESES, THOROUGH_SHEAR_HYPOTHESES, WEAK_BOX_MIN_WIDTH,
@@ -254,9 +254,9 @@ impl Unshear {
     /// [`Self::estimate`] of a photo read with its [`Metadata`](crate::imageio::Metadata)
     /// ([`read_image_with_metadata`](crate::imageio::read_image_with_metadata)), as the CLI
     /// reports it: a warning first when the decode is mostly without data
-    /// ([`missing_data_warning`](crate::imageio::missing_data_warning)), and every estimate
-    /// refused when the EXIF orientation turned the photo a quarter
-    /// ([`ImageReport::refuse_turned`]).
+    /// ([`missing_data_warning`](crate::imageio::missing_data_warning)), and, when the EXIF
+    /// orientation turned the photo a quarter (a phone held upright, whose sensor rows are the
+    /// picture's columns), the vertical shear of [`Self::read_by_columns`].
     pub fn estimate_photo(
         &self,
         img: &DynamicImage,
@@ -264,10 +264,68 @@ impl Unshear {
     ) -> ImageReport {
         let mut report = self.estimate(img);
         if metadata.turned {
-            report.refuse_turned();
+            report = self.read_by_columns(report);
         }
         if let Some(w) = crate::imageio::missing_data_warning(img) {
             report.warnings.insert(0, w);
+        }
+        report
+    }
+
+    /// `report` (of an upright picture, [`Readout::Rows`]) for a picture read out column by
+    /// column: every face's readings converted to the vertical shear `c` of `y' = y + c x` and
+    /// the head's roll under it ([`vertical_from_row_reading`](crate::estimate::vertical_from_row_reading)),
+    /// an estimate beyond [`Config::max_shear`] or without a reading refused, and the image's
+    /// shear found again from the faces. Read along its rows, such a skew looks like a roll
+    /// and a shear whose correction would turn the picture.
+    pub fn read_by_columns(&self, mut report: ImageReport) -> ImageReport {
+        use crate::estimate::vertical_from_row_reading;
+        if report.readout == Readout::Columns {
+            return report;
+        }
+        for f in &mut report.faces {
+            let roll = f.roll_degrees.to_radians();
+            let column = |k: f64| vertical_from_row_reading(k, roll).map(|v| v.k);
+            match vertical_from_row_reading(f.k_measured, roll) {
+                Some(v) => {
+                    f.k_measured = v.k;
+                    f.roll_degrees = v.roll.to_degrees();
+                    if f.k.is_some() {
+                        if v.k.abs() <= self.config.max_shear {
+                            f.k = Some(v.k);
+                        } else {
+                            f.k = None;
+                            f.refused = Some(Refusal::ImplausibleShear);
+                        }
+                    }
+                }
+                None => {
+                    if f.k.take().is_some() {
+                        f.refused = Some(Refusal::ImplausibleShear);
+                    }
+                }
+            }
+            f.k_nose = f.k_nose.and_then(column);
+            f.k_mouth = f.k_mouth.and_then(column);
+            f.k_nose_tip = f.k_nose_tip.and_then(column);
+            f.k_network = f.k_network.and_then(column);
+            f.k_points = f.k_points.and_then(column);
+            f.outvoted = false;
+        }
+        let consensus = consensus(&report.faces);
+        for &i in &consensus.outvoted {
+            report.faces[i].outvoted = true;
+        }
+        report.k = consensus.k;
+        report.faces_disagree = consensus.no_majority;
+        report.readout = Readout::Columns;
+        if !report.faces.is_empty() {
+            report.warnings.push(
+                "read out column by column (the picture is turned a quarter by its EXIF \
+                 orientation, as from a phone held upright): k is the vertical shear \
+                 y' = y + k x"
+                    .to_string(),
+            );
         }
         report
     }
@@ -290,6 +348,7 @@ impl Unshear {
             warnings: self.shape_warnings(gray.width(), gray.height()),
             width: gray.width(),
             height: gray.height(),
+            readout: Readout::Rows,
         }
     }
 

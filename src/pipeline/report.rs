@@ -32,11 +32,6 @@ pub enum Refusal {
     /// [`ROLLED_HEAD`](crate::pipeline::ROLLED_HEAD) and measured strongly sheared: its shear
     /// reading is unreliable.
     UnreliablePose,
-    /// The picture was turned a quarter by its EXIF orientation (a phone held upright), so the
-    /// camera read it out column by column: its skew is a vertical shear, which the model (a
-    /// shear along the rows) cannot measure; read as one, it would turn the picture instead of
-    /// straightening it (see [`ImageReport::refuse_turned`]).
-    TurnedPicture,
 }
 
 impl Refusal {
@@ -48,7 +43,6 @@ impl Refusal {
             Self::OutsideImage => "outside_image",
             Self::NotFaceLike => "not_face_like",
             Self::UnreliablePose => "unreliable_pose",
-            Self::TurnedPicture => "turned_picture",
         }
     }
 }
@@ -115,6 +109,19 @@ pub struct FaceReport {
     pub face_score: Option<f64>,
 }
 
+/// Which way the camera read the picture out, and so which way `k` shears it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Readout {
+    /// Row by row, as every camera reads its sensor: `x' = x + k y`.
+    #[default]
+    Rows,
+    /// Column by column: a picture its EXIF orientation turns a quarter (a phone held
+    /// upright), whose sensor rows are its columns; `y' = y + k x` (see
+    /// [`Unshear::estimate_photo`](crate::Unshear::estimate_photo)).
+    Columns,
+}
+
 /// What was found in one image.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ImageReport {
@@ -133,38 +140,17 @@ pub struct ImageReport {
     pub width: u32,
     /// Input height, pixels.
     pub height: u32,
+    /// Which way the picture was read out: the direction of every `k` here.
+    #[serde(default)]
+    pub readout: Readout,
 }
 
 impl ImageReport {
-    /// Refuses every accepted estimate, for a picture its EXIF orientation turned a quarter
-    /// ([`Metadata::turned`](crate::imageio::Metadata::turned)): the camera read its columns
-    /// one after another, so a moving camera skews it vertically, `y' = y + c x`. Seen through
-    /// the row model, such a skew reads as a roll of about `atan c` plus a shear of about `c`
-    /// (`[1 0; c 1]` = `S(tan t) R(t)` times a slight stretch, `sin 2t = 2c`), and correcting
-    /// that shear would leave the picture turned by `t`, 18 degrees at `c` = 0.3.
-    pub fn refuse_turned(&mut self) {
-        for f in &mut self.faces {
-            if f.k.take().is_some() {
-                f.refused = Some(Refusal::TurnedPicture);
-                f.outvoted = false;
-            }
-        }
-        self.k = None;
-        self.faces_disagree = false;
-        if !self.faces.is_empty() {
-            self.warnings.push(
-                "the picture is turned a quarter by its EXIF orientation (taken with the camera \
-                 upright): it was read out column by column, and its skew is not a shear along \
-                 the rows that unshear measures; not corrected"
-                    .to_string(),
-            );
-        }
-    }
-
     /// The marks [`crate::annotate::draw_annotations`] draws for these faces (the face axis of
     /// a refused estimate is drawn too, with the shear that was measured: the picture shows what
-    /// was found).
+    /// was found; not for a picture read out by columns, whose axis a row shear does not draw).
     pub fn marks(&self) -> Vec<FaceMarks> {
+        let rows = self.readout == Readout::Rows;
         self.faces
             .iter()
             .map(|f| FaceMarks {
@@ -174,7 +160,7 @@ impl ImageReport {
                 right_nostril: f.right_nostril,
                 left_nostril: f.left_nostril,
                 mouth: f.mouth,
-                k: f.k.or(Some(f.k_measured)),
+                k: f.k.or(Some(f.k_measured)).filter(|_| rows),
             })
             .collect()
     }

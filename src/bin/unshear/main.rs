@@ -118,16 +118,6 @@ fn no_shear_reason(report: &ImageReport) -> String {
     if report.faces.is_empty() {
         return "no face found".to_string();
     }
-    if report
-        .faces
-        .iter()
-        .any(|f| f.refused == Some(Refusal::TurnedPicture))
-    {
-        return "the picture is turned a quarter by its EXIF orientation (taken with the camera \
-                upright), so it was read out column by column: its skew is not the shear along \
-                the rows that unshear measures"
-            .to_string();
-    }
     if report.faces_disagree {
         return format!(
             "no trustworthy shear: the {} faces' estimates disagree with no consistent majority",
@@ -144,7 +134,6 @@ fn no_shear_reason(report: &ImageReport) -> String {
                 Refusal::OutsideImage => "outside the image",
                 Refusal::NotFaceLike => "not face-like",
                 Refusal::UnreliablePose => "tipped and rolled head",
-                Refusal::TurnedPicture => "turned picture",
             };
             Some(format!(
                 "{why} (k_measured {:+.3}, confidence {:.2})",

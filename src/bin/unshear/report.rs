@@ -3,12 +3,13 @@
 //! "left_eye": [x, y], "right_nostril": [x, y], "left_nostril": [x, y], "nose": [x, y]|null,
 //! "mouth": [x, y]|null, "k": number|null, "k_measured": number, "roll": number,
 //! "confidence": number}]}` plus
-//! `"error": "..."` when the input failed, `"faces_disagree"` and `"warnings"`; each face also
+//! `"error": "..."` when the input failed, `"faces_disagree"` and `"warnings"`, and
+//! `"readout": "columns"` for a picture read out column by column; each face also
 //! has `"refused"` (why its `k` is null) and `"outvoted"`. A face's `k` is null when its
 //! estimate was refused; `k_measured` is what was measured all the same; `roll` is in degrees.
 
 use serde::Serialize;
-use unshear::{FaceReport, ImageReport, Point};
+use unshear::{FaceReport, ImageReport, Point, Readout};
 
 /// One face, as printed.
 #[derive(Debug, Serialize)]
@@ -37,6 +38,10 @@ pub struct JsonLine {
     faces: Vec<JsonFace>,
     faces_disagree: bool,
     warnings: Vec<String>,
+    /// `"columns"` for a picture read out column by column (its `k` shears it vertically);
+    /// left out for the usual rows.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    readout: Option<&'static str>,
     #[serde(skip_serializing_if = "Option::is_none")]
     error: Option<String>,
 }
@@ -66,6 +71,7 @@ impl JsonLine {
             faces: report.faces.iter().map(face).collect(),
             faces_disagree: report.faces_disagree,
             warnings: report.warnings.clone(),
+            readout: (report.readout == Readout::Columns).then_some("columns"),
             error: None,
         }
     }
@@ -78,6 +84,7 @@ impl JsonLine {
             faces: Vec::new(),
             faces_disagree: false,
             warnings: Vec::new(),
+            readout: None,
             error: Some(message),
         }
     }
@@ -192,7 +199,7 @@ mod tests {
             faces in prop::collection::vec(face(), 0..3),
             error in prop::option::of(any::<String>()),
         ) {
-            let report = ImageReport { k, faces: faces.clone(), faces_disagree: false, warnings: vec![file.clone()], width: 10, height: 10 };
+            let report = ImageReport { k, faces: faces.clone(), faces_disagree: false, warnings: vec![file.clone()], width: 10, height: 10, readout: unshear::Readout::Rows };
             let line = match &error {
                 None => JsonLine::ok(&file, &report),
                 Some(e) => JsonLine::error(&file, e.clone()),
