@@ -77,6 +77,32 @@ fn has_encoder(encoder: &str, test: &str) -> bool {
 
 /// A fixture face on a grey 320x240 canvas, sheared by `K`, with a little noise per frame.
 fn frames() -> Vec<GrayImage> {
+    scenes().iter().map(|scene| shear_rows(scene, K)).collect()
+}
+
+/// `img` sheared by `k` along its rows about its middle row.
+fn shear_rows(img: &GrayImage, k: f64) -> GrayImage {
+    let (frame, _) = apply_shear(
+        &DynamicImage::ImageLuma8(img.clone()),
+        Shear::about_middle(k, img.height()),
+        Interpolation::Linear,
+        Canvas::Same,
+    );
+    frame.to_luma8()
+}
+
+/// The frames a phone held upright stores: each scene turned 90 degrees clockwise (the sensor's
+/// rows are the shown picture's columns), sheared by `K` along those stored rows. Shown turned
+/// back (rotation flag 90), the face is upright and sheared vertically by `-K`.
+fn portrait_frames() -> Vec<GrayImage> {
+    scenes()
+        .iter()
+        .map(|scene| shear_rows(&imageops::rotate90(scene), K))
+        .collect()
+}
+
+/// The fixture face moving on a grey 320x240 canvas, upright and unsheared.
+fn scenes() -> Vec<GrayImage> {
     let face = unshear::imageio::read_image(
         &common::fixture("subject01.normal.jpeg"),
         unshear::imageio::DEFAULT_MAX_PIXELS,
@@ -88,13 +114,7 @@ fn frames() -> Vec<GrayImage> {
         .map(|t| {
             let mut scene = GrayImage::from_pixel(W, H, Luma([110]));
             imageops::overlay(&mut scene, &face, 40 + t as i64, 30);
-            let (frame, _) = apply_shear(
-                &DynamicImage::ImageLuma8(scene),
-                Shear::about_middle(K, H),
-                Interpolation::Linear,
-                Canvas::Same,
-            );
-            frame.to_luma8()
+            scene
         })
         .collect()
 }
@@ -112,10 +132,16 @@ fn format(bit_depth: u32) -> VideoFormat {
 
 /// The frames as an 8-bit y4m stream (limited range, neutral chroma).
 fn y4m8(frames: &[GrayImage]) -> Vec<u8> {
-    let mut w = Y4mWriter::new(Vec::new(), &format(8)).expect("header");
+    let (width, height) = frames[0].dimensions();
+    let format = VideoFormat {
+        width,
+        height,
+        ..format(8)
+    };
+    let mut w = Y4mWriter::new(Vec::new(), &format).expect("header");
     for y in frames {
-        let mut f = YuvFrame::blank(&format(8));
-        f.y = GrayImage::from_fn(W, H, |x, yy| {
+        let mut f = YuvFrame::blank(&format);
+        f.y = GrayImage::from_fn(width, height, |x, yy| {
             Luma([16 + (u16::from(y.get_pixel(x, yy)[0]) * 219 / 255) as u8])
         });
         w.write_frame(&f).expect("frame");
@@ -202,12 +228,12 @@ fn h264_from(y4m: &Path, out: &Path) {
     );
 }
 
-/// A short H.264 + AAC MP4 of the sheared face, flagged for display rotated by 90 degrees
-/// (by `-display_rotation` where this ffmpeg has it, as 7.0 does, else by the `rotate` tag
-/// of a stream copy, which only older versions honour).
+/// A short H.264 + AAC MP4 as a phone held upright records it ([`portrait_frames`]), flagged
+/// for display rotated by 90 degrees (by `-display_rotation` where this ffmpeg has it, as 7.0
+/// does, else by the `rotate` tag of a stream copy, which only older versions honour).
 fn make_mp4(dir: &Path) -> PathBuf {
     let y4m = dir.join("clip.y4m");
-    std::fs::write(&y4m, y4m8(&frames())).expect("write y4m");
+    std::fs::write(&y4m, y4m8(&portrait_frames())).expect("write y4m");
     let help = Command::new("ffmpeg")
         .args(["-hide_banner", "-h", "long"])
         .output()
@@ -358,9 +384,17 @@ fn ks(json: &Path) -> Vec<Option<f64>> {
 
 /// Asserts that a face was found in every frame and measured within 0.06 of the shear `K`.
 fn assert_sheared_by_k(ks: &[Option<f64>]) {
+    assert_sheared_by(ks, K);
+}
+
+/// Asserts that a face was found in every frame and measured within 0.06 of `expected`.
+fn assert_sheared_by(ks: &[Option<f64>], expected: f64) {
     for (i, k) in ks.iter().enumerate() {
         let k = k.unwrap_or_else(|| panic!("no face in frame {i}"));
-        assert!((k - K).abs() < 0.06, "frame {i}: k {k}, sheared by {K}");
+        assert!(
+            (k - expected).abs() < 0.06,
+            "frame {i}: k {k}, sheared by {expected}"
+        );
     }
 }
 
@@ -395,13 +429,16 @@ fn mp4_in_mp4_out_keeps_sound_frames_duration_and_rotation() {
     assert_eq!(rotation(dv), rotation(sv), "rotation kept");
     assert_eq!(
         (dv["width"].as_u64(), dv["height"].as_u64()),
-        (Some(320), Some(240))
+        (Some(240), Some(320)),
+        "stored as the phone stored it"
     );
+    assert!(stderr.contains("vertical shear"), "{stderr}");
 
-    // The face's shear, measured on every frame.
+    // The face's shear, measured on every frame: shown turned upright, the stored rows'
+    // shear K is the shown picture's vertical shear -K.
     let ks = ks(&json);
     assert_eq!(ks.len(), FRAMES);
-    assert_sheared_by_k(&ks);
+    assert_sheared_by(&ks, -K);
     // The output is corrected: its frames read near 0 (and it is still a face).
     let again = dir.path().join("again.jsonl");
     run_ok(

@@ -255,6 +255,8 @@ impl VideoCorrector {
             k_source,
             interpolation,
             network_budget: unshear.config().network_budget,
+            // Frames come as the caller has them (OpenCV turns a rotated clip's upright).
+            rotation: 0,
         };
         let stream = Stream::new(unshear, |u| VideoProcessor::new(u, options));
         Ok(Self {

@@ -279,38 +279,11 @@ impl Unshear {
     /// shear found again from the faces. Read along its rows, such a skew looks like a roll
     /// and a shear whose correction would turn the picture.
     pub fn read_by_columns(&self, mut report: ImageReport) -> ImageReport {
-        use crate::estimate::vertical_from_row_reading;
         if report.readout == Readout::Columns {
             return report;
         }
         for f in &mut report.faces {
-            let roll = f.roll_degrees.to_radians();
-            let column = |k: f64| vertical_from_row_reading(k, roll).map(|v| v.k);
-            match vertical_from_row_reading(f.k_measured, roll) {
-                Some(v) => {
-                    f.k_measured = v.k;
-                    f.roll_degrees = v.roll.to_degrees();
-                    if f.k.is_some() {
-                        if v.k.abs() <= self.config.max_shear {
-                            f.k = Some(v.k);
-                        } else {
-                            f.k = None;
-                            f.refused = Some(Refusal::ImplausibleShear);
-                        }
-                    }
-                }
-                None => {
-                    if f.k.take().is_some() {
-                        f.refused = Some(Refusal::ImplausibleShear);
-                    }
-                }
-            }
-            f.k_nose = f.k_nose.and_then(column);
-            f.k_mouth = f.k_mouth.and_then(column);
-            f.k_nose_tip = f.k_nose_tip.and_then(column);
-            f.k_network = f.k_network.and_then(column);
-            f.k_points = f.k_points.and_then(column);
-            f.outvoted = false;
+            self.face_by_columns(f);
         }
         let consensus = consensus(&report.faces);
         for &i in &consensus.outvoted {
@@ -328,6 +301,39 @@ impl Unshear {
             );
         }
         report
+    }
+
+    /// One face's row readings (an upright face in a picture read out by columns) converted to
+    /// the vertical shear and the roll under it, as [`Self::read_by_columns`] does for each.
+    pub fn face_by_columns(&self, f: &mut FaceReport) {
+        use crate::estimate::vertical_from_row_reading;
+        let roll = f.roll_degrees.to_radians();
+        let column = |k: f64| vertical_from_row_reading(k, roll).map(|v| v.k);
+        match vertical_from_row_reading(f.k_measured, roll) {
+            Some(v) => {
+                f.k_measured = v.k;
+                f.roll_degrees = v.roll.to_degrees();
+                if f.k.is_some() {
+                    if v.k.abs() <= self.config.max_shear {
+                        f.k = Some(v.k);
+                    } else {
+                        f.k = None;
+                        f.refused = Some(Refusal::ImplausibleShear);
+                    }
+                }
+            }
+            None => {
+                if f.k.take().is_some() {
+                    f.refused = Some(Refusal::ImplausibleShear);
+                }
+            }
+        }
+        f.k_nose = f.k_nose.and_then(column);
+        f.k_mouth = f.k_mouth.and_then(column);
+        f.k_nose_tip = f.k_nose_tip.and_then(column);
+        f.k_network = f.k_network.and_then(column);
+        f.k_points = f.k_points.and_then(column);
+        f.outvoted = false;
     }
 
     /// [`Self::estimate`] on a greyscale image.

@@ -46,6 +46,12 @@ pub struct ProcessOptions {
     /// The landmark network's work per face ([`Budget::VIDEO`] by default: fewer, cheaper
     /// crops than for stills; the temporal filter averages their noise).
     pub network_budget: Budget,
+    /// The counter-clockwise turn a player gives the frames for display, degrees (a container's
+    /// rotation flag: 0, 90, -90 or 180; other angles are not turned). The frames are analysed
+    /// turned upright, so faces are found; turned a quarter (a phone held upright), they were
+    /// read out along the picture's columns, and `k` is the displayed picture's vertical shear
+    /// ([`Unshear::face_by_columns`]), undone on the stored frames along their rows.
+    pub rotation: i32,
 }
 
 impl Default for ProcessOptions {
@@ -58,6 +64,7 @@ impl Default for ProcessOptions {
             k_source: KSource::Filtered,
             interpolation: Interpolation::Linear,
             network_budget: Budget::VIDEO,
+            rotation: 0,
         }
     }
 }
@@ -140,15 +147,26 @@ impl<'a> VideoProcessor<'a> {
     /// Tracks and estimates one frame's luma and runs the causal filter; `k` is still the
     /// causal value. Returns the result and the smoothed `k` of the oldest pending frame, if
     /// it is due.
-    fn analyse(&mut self, gray: &GrayImage) -> (FrameResult, Option<f64>) {
+    fn analyse(&mut self, stored: &GrayImage) -> (FrameResult, Option<f64>) {
+        let gray = &*upright(stored, self.options.rotation);
+        let mut faces = self.faces_in(gray);
+        if self.options.rotation.abs() == 90 {
+            for f in &mut faces {
+                self.unshear.face_by_columns(f);
+            }
+        }
+        self.finish_analysis(faces)
+    }
+
+    /// The faces of one upright frame, followed or detected and estimated.
+    fn faces_in(&mut self, gray: &GrayImage) -> Vec<FaceReport> {
         // Start from the causal filtered shear: the face is then searched for, and its
         // features located, in a nearly upright view.
         let view_k = self.smoother.filter().k();
         let unshear = self.unshear;
         let budget = self.options.network_budget;
         if unshear.uses_network_detector() {
-            let faces = self.follow_and_detect(gray, view_k);
-            return self.finish_analysis(faces);
+            return self.follow_and_detect(gray, view_k);
         }
         let boxes = self.tracker.track(gray, view_k);
         let estimate = |&b: &Rect| {
@@ -162,12 +180,11 @@ impl<'a> VideoProcessor<'a> {
                 },
             )
         };
-        let faces: Vec<FaceReport> = if boxes.len() > 1 {
+        if boxes.len() > 1 {
             boxes.par_iter().filter_map(estimate).collect()
         } else {
             boxes.iter().filter_map(estimate).collect()
-        };
-        self.finish_analysis(faces)
+        }
     }
 
     /// With the network detector: the faces of the last frame followed into this one by the
@@ -289,7 +306,30 @@ impl<'a> VideoProcessor<'a> {
             KSource::Raw => result.k_raw.unwrap_or(result.k),
         };
         result.k_applied = Some(k);
-        Ok((frame.remove_shear(k, self.options.interpolation)?, result))
+        // Shown turned a quarter (either way), a shear `s` along the stored rows is the vertical
+        // shear `c = -s` of the picture shown: the stored frame is de-sheared by `-c`.
+        let stored_k = if self.options.rotation.abs() == 90 {
+            -k
+        } else {
+            k
+        };
+        Ok((
+            frame.remove_shear(stored_k, self.options.interpolation)?,
+            result,
+        ))
+    }
+}
+
+/// `stored` turned as a player shows it, `rotation` degrees counter-clockwise (see
+/// [`ProcessOptions::rotation`]).
+fn upright(stored: &GrayImage, rotation: i32) -> std::borrow::Cow<'_, GrayImage> {
+    use image::imageops;
+    use std::borrow::Cow;
+    match rotation {
+        90 => Cow::Owned(imageops::rotate270(stored)),
+        -90 => Cow::Owned(imageops::rotate90(stored)),
+        180 => Cow::Owned(imageops::rotate180(stored)),
+        _ => Cow::Borrowed(stored),
     }
 }
 
@@ -405,4 +445,29 @@ pub fn run(
         rejected: processor.rejected(),
         tracker: processor.tracker_stats(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::upright;
+    use image::{GrayImage, Luma};
+
+    #[test]
+    fn frames_are_turned_as_players_show_them() {
+        // 3 x 2, the top-left pixel marked: where a counter-clockwise turn puts it.
+        let mut stored = GrayImage::new(3, 2);
+        stored.put_pixel(0, 0, Luma([9]));
+        let at = |img: &GrayImage| {
+            let p = img.enumerate_pixels().find(|(_, _, p)| p[0] == 9);
+            (img.dimensions(), p.map(|(x, y, _)| (x, y)))
+        };
+        assert_eq!(at(&upright(&stored, 0)), ((3, 2), Some((0, 0))));
+        // 90 counter-clockwise: the top-left corner goes to the bottom left.
+        assert_eq!(at(&upright(&stored, 90)), ((2, 3), Some((0, 2))));
+        // -90 (clockwise, a phone's usual portrait flag): to the top right.
+        assert_eq!(at(&upright(&stored, -90)), ((2, 3), Some((1, 0))));
+        assert_eq!(at(&upright(&stored, 180)), ((3, 2), Some((2, 1))));
+        // Other angles are not turned.
+        assert_eq!(at(&upright(&stored, 45)), ((3, 2), Some((0, 0))));
+    }
 }

@@ -410,6 +410,9 @@ pub fn video(a: VideoArgs) -> Result<()> {
         },
         interpolation: a.interp.into(),
         network_budget: unshear.config().network_budget,
+        // The frames are decoded as stored; a clip flagged for display turned is analysed
+        // turned upright (a phone held upright: read out along the shown columns).
+        rotation: container.as_ref().map_or(0, |(_, p)| p.video.rotation),
     };
     let mut processor = VideoProcessor::new(&unshear, options);
     let write_options = WriteOptions {
@@ -567,18 +570,16 @@ pub fn video(a: VideoArgs) -> Result<()> {
                  y4m and frame folders carry no such flag, so their frames are as stored"
             );
         }
-        if frames_measured == 0 && r != 0 {
-            // Faces found on their side are refused (their pose), so "no face measured".
-            let what = if frames_with_faces == 0 {
-                "no face was found"
-            } else {
-                "no face was measured"
-            };
+        if r.abs() == 90 {
             eprintln!(
-                "unshear video: note: {what}; the frames are stored rotated by {r} \
-                 degrees for display (e.g. a phone held upright) and are analysed as stored, \
-                 where rolling shutter shears them, so faces upright on screen lie on their \
-                 side or upside down there, where they are not found or not measured"
+                "unshear video: note: the clip is shown turned by {r} degrees (a phone held \
+                 upright): it was read out along the shown picture's columns, so k is the \
+                 shown picture's vertical shear, y' = y + k x, undone along the stored rows"
+            );
+        } else if r != 0 && r != 180 {
+            eprintln!(
+                "unshear video: note: the clip is flagged for display turned by {r} degrees, \
+                 not a quarter or half turn: its frames are analysed as stored"
             );
         }
     }
