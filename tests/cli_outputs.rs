@@ -507,13 +507,17 @@ fn pictures_turned_a_quarter_are_corrected_along_their_columns() {
         }
     }
     let out = dir.path().join("quarter.fixed.png");
-    unshear()
+    let run = unshear()
         .arg("correct")
         .arg(dir.path().join("quarter.jpg"))
         .arg("-o")
         .arg(&out)
         .assert()
-        .success();
+        .success()
+        .get_output()
+        .clone();
+    let said = String::from_utf8_lossy(&run.stdout);
+    assert!(said.contains("along the columns"), "{said}");
     // Back to the upright face, to within two resamplings and JPEG's loss (grey levels, mean
     // over the face); the input was far off.
     let fixed = image::open(&out).expect("written").to_rgb8();

@@ -29,7 +29,7 @@ use models::load_models;
 use report::JsonLine;
 use unshear::filters::FilterType;
 use unshear::imageio::{self, WriteOptions};
-use unshear::{Config, CorrectOptions, ImageReport, Refusal, Shear, Unshear};
+use unshear::{Config, CorrectOptions, ImageReport, Readout, Refusal, Shear, Unshear};
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
@@ -103,8 +103,13 @@ fn describe(report: &ImageReport) -> String {
                 .iter()
                 .map(|f| f.confidence)
                 .fold(f64::NEG_INFINITY, f64::max);
+            // A photo turned by its EXIF orientation was read out by columns: its k is vertical.
+            let along = match report.readout {
+                Readout::Rows => "",
+                Readout::Columns => " along the columns (turned by its EXIF orientation)",
+            };
             format!(
-                "k = {k:+.3} ({n} face{}, best confidence {conf:.1})",
+                "k = {k:+.3}{along} ({n} face{}, best confidence {conf:.1})",
                 if n == 1 { "" } else { "s" }
             )
         }
