@@ -11,6 +11,7 @@ use unshear::imageio::DEFAULT_MAX_PIXELS;
 use unshear::video::temporal::FilterParams;
 use unshear::video::tracker::TrackerParams;
 use unshear::video::{FrameResult, KSource, ProcessOptions, VideoFrame, VideoProcessor};
+use unshear::Readout;
 
 use crate::args;
 use crate::config::{build, PyConfig, Use};
@@ -204,6 +205,7 @@ impl VideoCorrector {
         hold = 0.5,
         decay = 1.0,
         k_source = "filtered",
+        readout = "rows",
         interp = "linear",
         correct = true,
         bgr = false,
@@ -221,6 +223,7 @@ impl VideoCorrector {
         #[pyo3(from_py_with = args::hold)] hold: f64,
         #[pyo3(from_py_with = args::decay)] decay: f64,
         k_source: &str,
+        readout: &str,
         interp: &str,
         correct: bool,
         bgr: bool,
@@ -234,6 +237,15 @@ impl VideoCorrector {
             other => {
                 return Err(bad(format!(
                     "k_source must be \"filtered\" or \"raw\", got {other:?}"
+                )))
+            }
+        };
+        let readout = match readout {
+            "rows" => Readout::Rows,
+            "columns" => Readout::Columns,
+            other => {
+                return Err(bad(format!(
+                    "readout must be \"rows\" or \"columns\", got {other:?}"
                 )))
             }
         };
@@ -257,6 +269,7 @@ impl VideoCorrector {
             network_budget: unshear.config().network_budget,
             // Frames come as the caller has them (OpenCV turns a rotated clip's upright).
             rotation: 0,
+            readout,
         };
         let stream = Stream::new(unshear, |u| VideoProcessor::new(u, options));
         Ok(Self {

@@ -152,3 +152,31 @@ def test_a_second_face_is_found_within_a_few_frames(faces: list[np.ndarray]) -> 
     # Asked for, the cascade's interval still applies.
     slow = run(unshear.VideoCorrector(fps=30, smoothing_lag=0, redetect=30), frames)
     assert [len(f.faces) for f in slow][3:] == [1] * 11, [len(f.faces) for f in slow]
+
+
+def test_frames_read_by_columns_are_measured_and_corrected_vertically(
+    faces: list[np.ndarray],
+) -> None:
+    """Frames of a clip recorded with the phone held upright, turned upright as OpenCV gives
+    them: a pan shears them vertically, y' = y + k (x - W/2)."""
+
+    def vertical(image: np.ndarray, k: float) -> np.ndarray:
+        t = np.ascontiguousarray(np.swapaxes(image, 0, 1))
+        return np.ascontiguousarray(np.swapaxes(unshear.distort(t, k), 0, 1))
+
+    upright = clip(faces[0], k=0.0)
+    frames = [vertical(f, 0.25) for f in upright]
+    out = run(unshear.VideoCorrector(readout="columns"), frames)
+    tracked = [f for f in out if f.k_raw is not None]
+    assert len(tracked) >= 12
+    assert all(abs(f.k - 0.25) < 0.06 for f in out[4:]), [round(f.k, 3) for f in out]
+    # The frame comes back de-sheared along its columns: near the upright frame again.
+    inside = (slice(60, -60), slice(60, -60))
+    fixed, sheared = out[-1].image.astype(int), frames[-1].astype(int)
+    assert np.abs(fixed[inside] - upright[-1][inside]).mean() < 4.0
+    assert np.abs(sheared[inside] - upright[-1][inside]).mean() > 8.0
+    # Read along the rows, the same frames give another k (a roll and a shear).
+    rows = run(unshear.VideoCorrector(), frames)
+    assert abs(rows[-1].k - out[-1].k) > 0.01
+    with pytest.raises(ValueError, match="readout"):
+        unshear.VideoCorrector(readout="diagonal")  # type: ignore[arg-type]

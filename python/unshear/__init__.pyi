@@ -319,6 +319,10 @@ class VideoCorrector:
     ``lost_interval`` are at least 1 frame; ``detect_width`` is in pixels (0: full size);
     ``fps`` and ``decay`` are above 0, ``hold`` at least 0 (seconds). Bad values raise
     ``ValueError`` and wrong types ``TypeError``, as for ``Unshear``.
+
+    ``readout="columns"`` is for frames turned upright from a clip recorded turned a quarter
+    (a phone held upright; OpenCV turns them so): read out along their columns, their ``k`` is
+    the vertical shear ``y' = y + k x`` and they are corrected along their columns.
     """
 
     def __new__(
@@ -332,6 +336,7 @@ class VideoCorrector:
         hold: float = 0.5,
         decay: float = 1.0,
         k_source: Literal["filtered", "raw"] = "filtered",
+        readout: Literal["rows", "columns"] = "rows",
         interp: Interp = "linear",
         correct: bool = True,
         bgr: bool = False,

@@ -15,7 +15,7 @@ use super::VideoFrame;
 use crate::locate::network::Budget;
 use crate::pipeline::{combined_shear, FaceStart};
 use crate::warp::Interpolation;
-use crate::{FaceReport, Rect, Result, Unshear};
+use crate::{FaceReport, Readout, Rect, Result, Unshear};
 
 /// Which `k` corrects the frames.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -52,6 +52,12 @@ pub struct ProcessOptions {
     /// read out along the picture's columns, and `k` is the displayed picture's vertical shear
     /// ([`Unshear::face_by_columns`]), undone on the stored frames along their rows.
     pub rotation: i32,
+    /// How the frames, as given, were read out: [`Readout::Rows`] for a clip's stored frames
+    /// (with [`Self::rotation`]), [`Readout::Columns`] for frames already turned upright from
+    /// a clip recorded turned a quarter (OpenCV turns them so): the faces' readings are then
+    /// converted to the vertical shear, and the frames (images only) de-sheared along their
+    /// columns.
+    pub readout: Readout,
 }
 
 impl Default for ProcessOptions {
@@ -65,6 +71,7 @@ impl Default for ProcessOptions {
             interpolation: Interpolation::Linear,
             network_budget: Budget::VIDEO,
             rotation: 0,
+            readout: Readout::Rows,
         }
     }
 }
@@ -150,7 +157,7 @@ impl<'a> VideoProcessor<'a> {
     fn analyse(&mut self, stored: &GrayImage) -> (FrameResult, Option<f64>) {
         let gray = &*upright(stored, self.options.rotation);
         let mut faces = self.faces_in(gray);
-        if self.options.rotation.abs() == 90 {
+        if self.options.rotation.abs() == 90 || self.options.readout == Readout::Columns {
             for f in &mut faces {
                 self.unshear.face_by_columns(f);
             }
@@ -313,10 +320,25 @@ impl<'a> VideoProcessor<'a> {
         } else {
             k
         };
-        Ok((
-            frame.remove_shear(stored_k, self.options.interpolation)?,
-            result,
-        ))
+        let interp = self.options.interpolation;
+        let corrected = match (self.options.readout, frame) {
+            (Readout::Columns, VideoFrame::Image(img)) => {
+                // Along the columns: the row correction on the transposed image.
+                let transpose = |i: &image::DynamicImage| i.rotate90().fliph();
+                let t = transpose(&img);
+                let shear = crate::Shear::about_middle(stored_k, t.height());
+                let (fixed, _) =
+                    crate::warp::try_remove_shear(&t, shear, interp, crate::warp::Canvas::Same)?;
+                VideoFrame::Image(transpose(&fixed))
+            }
+            (Readout::Columns, _) => {
+                return Err(crate::Error::InvalidArgument(
+                    "frames read out by columns are corrected as images, not YUV".into(),
+                ))
+            }
+            (Readout::Rows, frame) => frame.remove_shear(stored_k, interp)?,
+        };
+        Ok((corrected, result))
     }
 }
 

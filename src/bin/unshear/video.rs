@@ -413,6 +413,7 @@ pub fn video(a: VideoArgs) -> Result<()> {
         // The frames are decoded as stored; a clip flagged for display turned is analysed
         // turned upright (a phone held upright: read out along the shown columns).
         rotation: container.as_ref().map_or(0, |(_, p)| p.video.rotation),
+        readout: unshear::Readout::Rows,
     };
     let mut processor = VideoProcessor::new(&unshear, options);
     let write_options = WriteOptions {
