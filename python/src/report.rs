@@ -20,6 +20,19 @@ pub fn state<'py, T: Serialize>(py: Python<'py>, value: &T) -> PyResult<Bound<'p
     pythonize::pythonize(py, value).map_err(|e| PyValueError::new_err(e.to_string()))
 }
 
+/// What `__reduce__` returns for a result pickled by its state: its class's `_from_state`
+/// and the state.
+pub type Reduced<'py> = (Bound<'py, PyAny>, (Bound<'py, PyAny>,));
+
+/// `__reduce__` of the result `slf`, whose state is `value`.
+fn reduce<'py, T: pyo3::PyClass, S: Serialize>(
+    slf: &Bound<'py, T>,
+    value: &S,
+) -> PyResult<Reduced<'py>> {
+    let restore = slf.as_any().get_type().getattr("_from_state")?;
+    Ok((restore, (state(slf.py(), value)?,)))
+}
+
 /// A result back from [`state`]'s objects.
 pub fn from_state<T: DeserializeOwned>(state: &Bound<'_, PyAny>) -> PyResult<T> {
     pythonize::depythonize(state)
@@ -149,12 +162,8 @@ impl Face {
     }
 
     /// Pickles as the face's full state (`copy` and `multiprocessing` use the same).
-    fn __reduce__<'py>(
-        slf: &Bound<'py, Self>,
-    ) -> PyResult<(Bound<'py, PyAny>, (Bound<'py, PyAny>,))> {
-        let py = slf.py();
-        let restore = slf.get_type().getattr("_from_state")?;
-        Ok((restore, (state(py, &slf.get().inner)?,)))
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Reduced<'py>> {
+        reduce(slf, &slf.get().inner)
     }
 
     #[classmethod]
@@ -256,12 +265,8 @@ impl Report {
     }
 
     /// Pickles as the report's full state (`copy` and `multiprocessing` use the same).
-    fn __reduce__<'py>(
-        slf: &Bound<'py, Self>,
-    ) -> PyResult<(Bound<'py, PyAny>, (Bound<'py, PyAny>,))> {
-        let py = slf.py();
-        let restore = slf.get_type().getattr("_from_state")?;
-        Ok((restore, (state(py, &slf.get().inner)?,)))
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Reduced<'py>> {
+        reduce(slf, &slf.get().inner)
     }
 
     #[classmethod]

@@ -196,3 +196,12 @@ pub fn consensus(faces: &[FaceReport]) -> Consensus {
 pub fn combined_shear(faces: &[FaceReport]) -> Option<f64> {
     consensus(faces).k
 }
+
+/// [`consensus`] of `faces`, with the faces it outvotes marked so (`outvoted`).
+pub fn mark_consensus(faces: &mut [FaceReport]) -> Consensus {
+    let consensus = consensus(faces);
+    for &i in &consensus.outvoted {
+        faces[i].outvoted = true;
+    }
+    consensus
+}

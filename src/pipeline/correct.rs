@@ -8,11 +8,6 @@ use crate::error::{Error, Result};
 use crate::geometry::Shear;
 use crate::warp;
 
-/// `img` with its rows and columns swapped (`(x, y)` to `(y, x)`).
-fn transpose(img: &DynamicImage) -> DynamicImage {
-    img.rotate90().fliph()
-}
-
 /// How much a face box is enlarged (each side, as a fraction of its size) to make the region that
 /// a face-region correction changes: the margin takes in hair and jaw, and the warp's feathered
 /// edge lies outside the face.
@@ -43,8 +38,8 @@ impl Unshear {
                 let b = f.face_box;
                 f.face_box = crate::geometry::Rect::new(b.y, b.x, b.height, b.width);
             }
-            let out = self.correct(&transpose(img), &rows, options)?;
-            return Ok(transpose(&out));
+            let out = self.correct(&warp::transpose(img), &rows, options)?;
+            return Ok(warp::transpose(&out));
         }
         if let Some(k) = options.k {
             if !k.is_finite() {

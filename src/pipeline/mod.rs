@@ -31,7 +31,7 @@ mod tests;
 use image::{DynamicImage, GrayImage};
 use rayon::prelude::*;
 
-pub use combine::{combined_shear, consensus, Consensus, FACE_UNCERTAINTY};
+pub use combine::{combined_shear, consensus, mark_consensus, Consensus, FACE_UNCERTAINTY};
 pub use correct::FACE_REGION_MARGIN;
 pub use face::FaceStart;
 pub use proposals::{box_from_eyes, follows, FOLLOW_MAX_MOVE, FOLLOW_MAX_SCALE};
@@ -285,10 +285,7 @@ impl Unshear {
         for f in &mut report.faces {
             self.face_by_columns(f);
         }
-        let consensus = consensus(&report.faces);
-        for &i in &consensus.outvoted {
-            report.faces[i].outvoted = true;
-        }
+        let consensus = mark_consensus(&mut report.faces);
         report.k = consensus.k;
         report.faces_disagree = consensus.no_majority;
         report.readout = Readout::Columns;
@@ -343,10 +340,7 @@ impl Unshear {
             .into_iter()
             .filter_map(|(_, face)| face)
             .collect();
-        let consensus = consensus(&faces);
-        for &i in &consensus.outvoted {
-            faces[i].outvoted = true;
-        }
+        let consensus = mark_consensus(&mut faces);
         ImageReport {
             k: consensus.k,
             faces,

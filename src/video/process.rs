@@ -324,11 +324,10 @@ impl<'a> VideoProcessor<'a> {
         let corrected = match (self.options.readout, frame) {
             (Readout::Columns, VideoFrame::Image(img)) => {
                 // Along the columns: the row correction on the transposed image.
-                let transpose = |i: &image::DynamicImage| i.rotate90().fliph();
+                use crate::warp::{transpose, try_remove_shear, Canvas};
                 let t = transpose(&img);
                 let shear = crate::Shear::about_middle(stored_k, t.height());
-                let (fixed, _) =
-                    crate::warp::try_remove_shear(&t, shear, interp, crate::warp::Canvas::Same)?;
+                let (fixed, _) = try_remove_shear(&t, shear, interp, Canvas::Same)?;
                 VideoFrame::Image(transpose(&fixed))
             }
             (Readout::Columns, _) => {

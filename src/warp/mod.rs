@@ -273,6 +273,12 @@ pub fn try_remove_shear(
     try_apply_shear(img, negate(shear), interp, canvas)
 }
 
+/// `img` with its rows and columns swapped (`(x, y)` to `(y, x)`): a vertical shear becomes a
+/// horizontal one, which the row warps above undo.
+pub fn transpose(img: &DynamicImage) -> DynamicImage {
+    img.rotate90().fliph()
+}
+
 /// [`try_remove_shear`] for a grey image, without wrapping it in a [`DynamicImage`] (which
 /// would take a copy of it: the face search warps the grey photo many times).
 pub fn try_remove_shear_gray(

@@ -496,3 +496,14 @@ fn the_grey_warp_is_the_dynamic_images_warp() {
     )
     .is_err());
 }
+
+#[test]
+fn transposing_swaps_rows_and_columns() {
+    let img = DynamicImage::ImageLuma8(GrayImage::from_fn(3, 2, |x, y| Luma([(10 * y + x) as u8])));
+    let t = transpose(&img).to_luma8();
+    assert_eq!(t.dimensions(), (2, 3));
+    for (x, y, p) in t.enumerate_pixels() {
+        assert_eq!(p[0], (10 * x + y) as u8, "({x}, {y})");
+    }
+    assert_eq!(transpose(&transpose(&img)), img);
+}
