@@ -49,7 +49,7 @@ use crate::error::Result;
 use crate::filters::{EyeFilters, FilterType};
 use crate::geometry::{Point, Rect};
 use crate::locate::network::{Budget, LandmarkNet};
-use combine::{measured_shear, most_confident_of_overlapping};
+use combine::{holds_eyes, measured_shear, most_confident_of_overlapping};
 use proposals::{
     network_windows, network_windows_desheared, proposal_detection, proposal_detections,
     proposal_is_new, proposal_shows, settle_unsure_faces, window_is_face, window_is_new,
@@ -60,6 +60,16 @@ use search::{
     THOROUGH_ROLL_HYPOTHESES as THOROUGH_ROLLS, THOROUGH_SHEAR_HYPOTHESES as THOROUGH_SHEARS,
     THOROUGH_STAGE_SLACK, THOROUGH_VIEW_MIN_FACE,
 };
+
+/// A network detector's window whose look was doubtful: the landmark network's face score
+/// short of a face's but not far short ([`face::RETRY_MIN_FACE_SCORE`]).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct DoubtfulWindow {
+    window: Detection,
+    logit: f32,
+    /// The shear the window was read from, when known better than its own.
+    start_k: Option<f64>,
+}
 
 /// The smallest face the network detector's pass over the image de-sheared by the measured
 /// shear looks for, as a share of the smallest face found
@@ -403,8 +413,9 @@ impl Unshear {
             let min_width = f64::from(self.config.min_face);
             let windows = network_windows(net, gray, min_width);
             let budget = self.config.network_budget;
-            self.judge_windows(gray, windows, None, budget, &mut all);
-            self.judge_measured_view(net, gray, min_width, budget, &mut all);
+            let mut doubtful = self.judge_windows(gray, windows, None, budget, &mut all);
+            doubtful.extend(self.judge_measured_view(net, gray, min_width, budget, &mut all));
+            self.judge_doubtful_windows(gray, &doubtful, budget, &mut all);
             return most_confident_of_overlapping(all);
         }
         let thorough = self.thorough_detectors();
@@ -519,7 +530,8 @@ impl Unshear {
     /// elsewhere than the window expects (the window's regressed eyes are off, most often on
     /// strongly sheared faces) gets a second look from where the network landed, and counts
     /// when that look lands there again ([`Self::take_second_looks`]). The faces found join
-    /// `found`.
+    /// `found`; the windows whose look was doubtful are returned, each with the shear it was
+    /// read from, for [`Self::judge_doubtful_windows`].
     pub(crate) fn judge_windows(
         &self,
         gray: &GrayImage,
@@ -527,14 +539,22 @@ impl Unshear {
         start_k: Option<f64>,
         budget: Budget,
         found: &mut Vec<(Rect, Option<FaceReport>)>,
-    ) {
+    ) -> Vec<DoubtfulWindow> {
         let first_new = found.len();
         // The logit of the window that found each face of `found`; the faces found before
         // count as found by the strongest.
         let mut found_by = vec![f32::INFINITY; found.len()];
         let mut second_looks = Vec::new();
         let looks = self.look_at_windows(gray, &windows, start_k, budget, found);
-        for ((d, logit), look) in windows.iter().zip(looks) {
+        let mut doubtful = Vec::new();
+        for ((d, logit), (look, doubt)) in windows.iter().zip(looks) {
+            if doubt {
+                doubtful.push(DoubtfulWindow {
+                    window: *d,
+                    logit: *logit,
+                    start_k,
+                });
+            }
             match look {
                 Some(r) if proposal_shows(d, &r) => {
                     found.push((d.face_box, Some(r)));
@@ -558,6 +578,53 @@ impl Unshear {
         // cannot hide that face's own window.
         self.take_second_looks(gray, &second_looks, start_k, budget, found, found_by);
         settle_unsure_faces(found, first_new);
+        doubtful
+    }
+
+    /// The last resort for `windows` whose look was doubtful ([`Self::judge_windows`]),
+    /// strongest first, once every window has been judged: each that no face found hides, sure
+    /// or not ([`proposal_is_new`]), is read again from turned starts ([`Unshear::read_box`]),
+    /// and a face found so where the window expects it, hidden by none either and apart from
+    /// them (neither box holding the other's eyes), joins `found`, its estimate refused and with
+    /// no confidence. Being last, such a face hides no window that reads a face as it is.
+    pub(crate) fn judge_doubtful_windows(
+        &self,
+        gray: &GrayImage,
+        windows: &[DoubtfulWindow],
+        budget: Budget,
+        found: &mut Vec<(Rect, Option<FaceReport>)>,
+    ) {
+        let mut windows = windows.to_vec();
+        windows.sort_by(|a, b| b.logit.total_cmp(&a.logit));
+        for w in windows {
+            if !proposal_is_new(&w.window, found) {
+                continue;
+            }
+            let start = FaceStart {
+                k: w.start_k.unwrap_or(w.window.view_k),
+                roll: w.window.view_roll,
+                budget: Some(budget),
+            };
+            let Ok(r) = self.read_box(gray, w.window.face_box, start, true) else {
+                continue;
+            };
+            let read = proposal_detection(
+                r.right_eye.midpoint(r.left_eye),
+                r.right_eye.distance(r.left_eye),
+            );
+            // Nor may its box hold a found face's eyes, or its eyes be in a found face's box:
+            // a doubtful reading is no reason to nest two faces.
+            let apart = found.iter().all(|(b, f)| {
+                f.is_none_or(|f| !holds_eyes(&w.window.face_box, &f) && !holds_eyes(b, &r))
+            });
+            if window_is_face(w.logit, &r)
+                && proposal_shows(&w.window, &r)
+                && proposal_is_new(&read, found)
+                && apart
+            {
+                found.push((w.window.face_box, Some(r)));
+            }
+        }
     }
 
     /// Adds to `found` the faces the network detector finds in `gray` de-sheared by the shear
@@ -575,9 +642,9 @@ impl Unshear {
         min_width: f64,
         budget: Budget,
         found: &mut Vec<(Rect, Option<FaceReport>)>,
-    ) {
+    ) -> Vec<DoubtfulWindow> {
         let Some(k) = measured_shear(found).filter(|k| k.abs() >= MEASURED_VIEW_MIN_SHEAR) else {
-            return;
+            return Vec::new();
         };
         let smallest = found
             .iter()
@@ -587,7 +654,7 @@ impl Unshear {
         let step = net.default_params().scale_step;
         let min_width = measured_view_min_width(min_width, smallest, gray.width(), step);
         let windows = network_windows_desheared(net, gray, min_width, k);
-        self.judge_windows(gray, windows, Some(k), budget, found);
+        self.judge_windows(gray, windows, Some(k), budget, found)
     }
 
     /// The second looks of [`Self::judge_windows`], strongest first, among the faces `found`
@@ -614,7 +681,7 @@ impl Unshear {
             .par_iter()
             .map(|(d, logit)| {
                 window_is_new(d, &stronger(found, &found_by, *logit))
-                    .then(|| self.look_at_window(gray, d, *logit, start_k, budget))
+                    .then(|| self.look_at_window(gray, d, *logit, start_k, budget).0)
                     .flatten()
             })
             .collect();
@@ -654,7 +721,8 @@ impl Unshear {
     /// once found, may hide it), so a frame's separate windows (a busy scene can give ten) do
     /// not wait for each other on one core, and no look is spent on a window its stronger
     /// neighbour's face will hide. Each look depends only on its window, so the results are
-    /// those of one window at a time.
+    /// those of one window at a time. Each look comes with whether it was doubtful
+    /// ([`Self::look_at_window`]).
     fn look_at_windows(
         &self,
         gray: &GrayImage,
@@ -662,11 +730,11 @@ impl Unshear {
         start_k: Option<f64>,
         budget: Budget,
         found: &[(Rect, Option<FaceReport>)],
-    ) -> Vec<Option<FaceReport>> {
+    ) -> Vec<(Option<FaceReport>, bool)> {
         let mut found_now = found.to_vec();
         // Each window's look once taken (`Some`), and each window's outcome once decided.
-        let mut taken: Vec<Option<Option<FaceReport>>> = vec![None; windows.len()];
-        let mut looks: Vec<Option<FaceReport>> = Vec::with_capacity(windows.len());
+        let mut taken: Vec<Option<(Option<FaceReport>, bool)>> = vec![None; windows.len()];
+        let mut looks: Vec<(Option<FaceReport>, bool)> = Vec::with_capacity(windows.len());
         while looks.len() < windows.len() {
             let next = looks.len();
             // The wave: from `next` on, every window not looked at yet and still new that no
@@ -683,7 +751,7 @@ impl Unshear {
                         })
                 })
                 .collect();
-            let seen: Vec<(usize, Option<FaceReport>)> = wave
+            let seen: Vec<(usize, (Option<FaceReport>, bool))> = wave
                 .par_iter()
                 .map(|&j| {
                     let (d, logit) = &windows[j];
@@ -697,13 +765,13 @@ impl Unshear {
             // none).
             while let Some((d, _)) = windows.get(looks.len()) {
                 let look = if !window_is_new(d, &found_now) {
-                    None
+                    (None, false)
                 } else if let Some(look) = taken[looks.len()].take() {
                     look
                 } else {
                     break;
                 };
-                if let Some(r) = look.filter(|r| proposal_shows(d, r)) {
+                if let Some(r) = look.0.filter(|r| proposal_shows(d, r)) {
                     found_now.push((d.face_box, Some(r)));
                 }
                 looks.push(look);
@@ -716,7 +784,8 @@ impl Unshear {
     /// `logit`), started from its shear (or `start_k`) and roll with `budget`, if the network
     /// finds a face there ([`window_is_face`]); strongly rolled ones refused
     /// ([`NETWORK_DETECTOR_MAX_ROLL`]), and rolled ones measured strongly sheared
-    /// ([`ROLLED_HEAD`]).
+    /// ([`ROLLED_HEAD`]); with it, whether a window giving no face was read doubtfully
+    /// ([`Unshear::read_box`]).
     fn look_at_window(
         &self,
         gray: &GrayImage,
@@ -724,13 +793,16 @@ impl Unshear {
         logit: f32,
         start_k: Option<f64>,
         budget: Budget,
-    ) -> Option<FaceReport> {
+    ) -> (Option<FaceReport>, bool) {
         let start = FaceStart {
             k: start_k.unwrap_or(d.view_k),
             roll: d.view_roll,
             budget: Some(budget),
         };
-        let mut r = self.estimate_face(gray, d.face_box, start)?;
+        let mut r = match self.read_box(gray, d.face_box, start, false) {
+            Ok(r) => r,
+            Err(doubtful) => return (None, doubtful),
+        };
         let (roll, k) = (r.roll_degrees.abs(), r.k_measured.abs());
         let rolled_and_sheared = roll > ROLLED_HEAD && k > ROLLED_HEAD_MAX_SHEAR;
         if (roll > NETWORK_DETECTOR_MAX_ROLL || rolled_and_sheared) && r.k.is_some() {
@@ -739,7 +811,7 @@ impl Unshear {
             r.k = None;
             r.refused = Some(Refusal::UnreliablePose);
         }
-        window_is_face(logit, &r).then_some(r)
+        (window_is_face(logit, &r).then_some(r), false)
     }
 
     /// Whether the network detector finds the faces ([`Detector::Network`] with the network
@@ -773,7 +845,8 @@ impl Unshear {
                 (d, logit)
             })
             .collect();
-        self.judge_windows(gray, windows, Some(start_k), budget, found);
+        let doubtful = self.judge_windows(gray, windows, Some(start_k), budget, found);
+        self.judge_doubtful_windows(gray, &doubtful, budget, found);
     }
 
     /// The proposal network when it is the face detector ([`Detector::Network`] with the

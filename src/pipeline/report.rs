@@ -29,8 +29,8 @@ pub enum Refusal {
     /// [`TRUSTED_NOSE_DROP`](crate::pipeline::confidence::TRUSTED_NOSE_DROP)), or, found by the
     /// network detector, rolled beyond
     /// [`NETWORK_DETECTOR_MAX_ROLL`](crate::pipeline::NETWORK_DETECTOR_MAX_ROLL) or rolled beyond
-    /// [`ROLLED_HEAD`](crate::pipeline::ROLLED_HEAD) and measured strongly sheared: its shear
-    /// reading is unreliable.
+    /// [`ROLLED_HEAD`](crate::pipeline::ROLLED_HEAD) and measured strongly sheared, or read as a
+    /// face only from a start turned away from the detector's: its shear reading is unreliable.
     UnreliablePose,
 }
 

@@ -714,6 +714,64 @@ fn a_window_off_its_face_gets_a_second_look_from_where_the_network_landed() {
     );
 }
 
+/// A box read from starts turned each way ([`Unshear::read_box`] with `turned`) gives the face
+/// with its estimate refused and no confidence; a box showing nothing is no face and not
+/// doubtful either way.
+#[test]
+fn a_box_read_from_turned_starts_gives_the_face_refused() {
+    let (u, gray, face, eyes, distance) = bundled_example_face();
+    let start = FaceStart {
+        k: 0.3,
+        ..FaceStart::default()
+    };
+    let upright = u
+        .read_box(&gray, face.face_box, start, false)
+        .expect("the face read as it is");
+    assert!(upright.k.is_some(), "{upright:?}");
+    let turned = u
+        .read_box(&gray, face.face_box, start, true)
+        .expect("the face read from turned starts");
+    assert_eq!(turned.k, None, "{turned:?}");
+    assert_eq!(turned.refused, Some(Refusal::UnreliablePose));
+    assert_eq!(turned.confidence, 0.0);
+    // The same eyes (the network's eyes are within 0.10 eye distances for 96% of faces).
+    assert!(turned.right_eye.midpoint(turned.left_eye).distance(eyes) < 0.1 * distance);
+    let flat = GrayImage::from_pixel(gray.width(), gray.height(), image::Luma([128]));
+    for turned in [false, true] {
+        let read = u.read_box(&flat, face.face_box, start, turned);
+        assert_eq!(read.err(), Some(false), "turned: {turned}");
+    }
+}
+
+/// The last resort for doubtful windows ([`Unshear::judge_doubtful_windows`]) adds a face no
+/// other explains, refused, and nothing over a face already found.
+#[test]
+fn doubtful_windows_add_only_faces_not_found() {
+    let (u, gray, _, eyes, distance) = bundled_example_face();
+    let window = Detection {
+        view_k: 0.3,
+        ..proposal_detection(eyes, distance)
+    };
+    let doubtful = [DoubtfulWindow {
+        window,
+        logit: 5.0,
+        start_k: None,
+    }];
+    let budget = u.config.network_budget;
+    let mut found = Vec::new();
+    u.judge_doubtful_windows(&gray, &doubtful, budget, &mut found);
+    assert_eq!(found.len(), 1, "{found:?}");
+    let r = found[0].1.expect("a face");
+    assert_eq!((r.k, r.confidence), (None, 0.0), "{r:?}");
+    let mut found = Vec::new();
+    let left = u.judge_windows(&gray, vec![(window, 5.0)], None, budget, &mut found);
+    assert!(left.is_empty(), "the face is read as it is: {left:?}");
+    assert_eq!(found.len(), 1);
+    u.judge_doubtful_windows(&gray, &doubtful, budget, &mut found);
+    assert_eq!(found.len(), 1, "no second face over the first: {found:?}");
+    assert!(found[0].1.is_some_and(|r| r.k.is_some()));
+}
+
 /// Looking at a frame's windows in parallel waves gives what looking at one after the other
 /// gives: a window on the face a stronger window found is skipped (its look `None`), the
 /// others are looked at, in the windows' order.
@@ -739,17 +797,19 @@ fn windows_looked_at_in_waves_are_judged_as_one_at_a_time() {
     let mut sequential = Vec::new();
     let mut found: Vec<(Rect, Option<FaceReport>)> = Vec::new();
     for (d, logit) in &windows {
-        let look = window_is_new(d, &found)
-            .then(|| u.look_at_window(&gray, d, *logit, None, budget))
-            .flatten();
-        if let Some(r) = look.filter(|r| proposal_shows(d, r)) {
+        let look = if window_is_new(d, &found) {
+            u.look_at_window(&gray, d, *logit, None, budget)
+        } else {
+            (None, false)
+        };
+        if let Some(r) = look.0.filter(|r| proposal_shows(d, r)) {
             found.push((d.face_box, Some(r)));
         }
         sequential.push(look);
     }
-    assert!(sequential[1].is_some(), "the face's window finds it");
+    assert!(sequential[1].0.is_some(), "the face's window finds it");
     assert!(
-        sequential[3].is_none(),
+        sequential[3].0.is_none(),
         "the second window on it is skipped"
     );
     let waves = u.look_at_windows(&gray, &windows, None, budget, &[]);
