@@ -145,6 +145,7 @@ fn decode<R: BufRead + Seek>(
         })
     };
     let mut reader = open().map_err(io_err)?;
+    let is_tiff = reader.format() == Some(image::ImageFormat::Tiff);
     let mut limits = Limits::default();
     limits.max_alloc = Some(
         max_pixels
@@ -163,6 +164,20 @@ fn decode<R: BufRead + Seek>(
             let dims = unlimited.into_dimensions().map_err(image_err)?;
             return Err(too_large(dims).unwrap_or_else(|| image_err(e)));
         }
+        Err(e @ image::ImageError::Unsupported(_)) if is_tiff => {
+            let inner = open().map_err(io_err)?.into_inner();
+            return match grey_alpha_tiff(inner, max_pixels) {
+                Some(Ok((img, orientation))) => Ok((
+                    img,
+                    Metadata {
+                        turned: turned_by(orientation),
+                        ..Metadata::default()
+                    },
+                )),
+                Some(Err(dims)) => Err(too_large(dims).unwrap_or_else(|| image_err(e))),
+                None => Err(image_err(e)),
+            };
+        }
         Err(e) => return Err(image_err(e)),
     };
     if let Some(e) = too_large(decoder.dimensions()) {
@@ -180,16 +195,73 @@ fn decode<R: BufRead + Seek>(
         // The pixels are upright now: a copied orientation tag would turn them again.
         let _ = image::metadata::Orientation::remove_from_exif_chunk(exif);
     }
-    use image::metadata::Orientation::{Rotate270, Rotate270FlipH, Rotate90, Rotate90FlipH};
     let metadata = Metadata {
         icc_profile: icc_profile.filter(|p| !p.is_empty()),
         exif: exif.filter(|e| !e.is_empty()),
-        turned: matches!(
-            orientation,
-            Rotate90 | Rotate270 | Rotate90FlipH | Rotate270FlipH
-        ),
+        turned: turned_by(orientation),
     };
     Ok((img, metadata))
+}
+
+/// Whether `orientation` turns the pixels a quarter ([`Metadata::turned`]).
+fn turned_by(orientation: image::metadata::Orientation) -> bool {
+    use image::metadata::Orientation::{Rotate270, Rotate270FlipH, Rotate90, Rotate90FlipH};
+    matches!(
+        orientation,
+        Rotate90 | Rotate270 | Rotate90FlipH | Rotate270FlipH
+    )
+}
+
+/// A grey-with-alpha TIFF (8 or 16 bits, black is zero), which the `image` crate refuses: the
+/// `tiff` crate reports grey with an extra sample as "multiband", and `image` knows no such
+/// colour type. `None` when the file is not one or cannot be decoded (the caller reports the
+/// `image` crate's error), `Some(Err(dimensions))` when it holds more than `max_pixels`. The
+/// orientation tag is applied and returned.
+fn grey_alpha_tiff<R: std::io::Read + Seek>(
+    r: R,
+    max_pixels: u64,
+) -> Option<std::result::Result<(DynamicImage, image::metadata::Orientation), (u32, u32)>> {
+    use tiff::decoder::{Decoder, DecodingResult, Limits as TiffLimits};
+    use tiff::tags::{PhotometricInterpretation, Tag};
+    let mut decoder = Decoder::new(r).ok()?;
+    let (width, height) = decoder.dimensions().ok()?;
+    let two_samples = matches!(
+        decoder.colortype().ok()?,
+        tiff::ColorType::Multiband {
+            bit_depth: 8 | 16,
+            num_samples: 2
+        } | tiff::ColorType::GrayA(8 | 16)
+    );
+    let photometric = decoder
+        .find_tag_unsigned::<u16>(Tag::PhotometricInterpretation)
+        .ok()??;
+    if !two_samples || photometric != PhotometricInterpretation::BlackIsZero.to_u16() {
+        return None;
+    }
+    if u64::from(width) * u64::from(height) > max_pixels {
+        return Some(Err((width, height)));
+    }
+    let mut limits = TiffLimits::default();
+    // Two 16-bit samples a pixel at most.
+    limits.decoding_buffer_size =
+        usize::try_from(max_pixels.saturating_mul(4)).unwrap_or(usize::MAX);
+    let orientation = decoder
+        .find_tag_unsigned::<u8>(Tag::Orientation)
+        .ok()
+        .flatten()
+        .and_then(image::metadata::Orientation::from_exif)
+        .unwrap_or(image::metadata::Orientation::NoTransforms);
+    let mut img = match decoder.with_limits(limits).read_image().ok()? {
+        DecodingResult::U8(v) => {
+            DynamicImage::ImageLumaA8(image::ImageBuffer::from_raw(width, height, v)?)
+        }
+        DecodingResult::U16(v) => {
+            DynamicImage::ImageLumaA16(image::ImageBuffer::from_raw(width, height, v)?)
+        }
+        _ => return None,
+    };
+    img.apply_orientation(orientation);
+    Some(Ok((img, orientation)))
 }
 
 /// What a photo file says about its pixels besides the pixels: carried from the file read
@@ -763,6 +835,38 @@ mod tests {
                 .to_luma_alpha8(),
             la.to_luma_alpha8()
         );
+    }
+
+    /// Grey-with-alpha TIFFs, which the `image` crate refuses, are read with both channels
+    /// exact; too large, they are refused as such. The fixtures are FFmpeg's TIFFs (PackBits,
+    /// `ExtraSamples` = unassociated alpha) of raw `ya8` / `ya16le` samples: grey `16 x + y` /
+    /// `4096 x + y`, alpha `255 - 8 x` / `65535 - 2048 x`.
+    #[test]
+    fn grey_alpha_tiffs_are_read() {
+        let eight = include_bytes!("../tests/fixtures/grey-alpha-8x6.tiff");
+        let DynamicImage::ImageLumaA8(img) = read_image_from_memory(eight, 1 << 20).unwrap() else {
+            panic!("not 8-bit grey with alpha");
+        };
+        assert_eq!(img.dimensions(), (8, 6));
+        for (x, y, p) in img.enumerate_pixels() {
+            assert_eq!(p.0, [(16 * x + y) as u8, (255 - 8 * x) as u8], "({x}, {y})");
+        }
+        let sixteen = include_bytes!("../tests/fixtures/grey-alpha16-8x6.tiff");
+        let DynamicImage::ImageLumaA16(img) = read_image_from_memory(sixteen, 1 << 20).unwrap()
+        else {
+            panic!("not 16-bit grey with alpha");
+        };
+        for (x, y, p) in img.enumerate_pixels() {
+            assert_eq!(
+                p.0,
+                [(4096 * x + y) as u16, (65535 - 2048 * x) as u16],
+                "({x}, {y})"
+            );
+        }
+        assert!(matches!(
+            read_image_from_memory(eight, 47),
+            Err(Error::TooLarge { pixels: 48, .. })
+        ));
     }
 
     #[test]
