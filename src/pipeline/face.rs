@@ -318,13 +318,10 @@ impl Unshear {
                 .with(|ws| network::locate_within(net, gray, start, budget, &mut ws.borrow_mut()))
         };
         let found = if turned {
-            let turns = [RETRY_ROLL_DEGREES, -RETRY_ROLL_DEGREES];
-            let readings = turns.map(|turn| locate(roll + turn.to_radians()));
-            let [a, b] = readings;
-            match (a, b) {
-                (Some(a), Some(b)) => Some(if b.face > a.face { b } else { a }),
-                (a, b) => a.or(b),
-            }
+            [RETRY_ROLL_DEGREES, -RETRY_ROLL_DEGREES]
+                .into_iter()
+                .filter_map(|turn| locate(roll + turn.to_radians()))
+                .reduce(|a, b| if b.face > a.face { b } else { a })
         } else {
             locate(roll)
         };
