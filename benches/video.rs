@@ -60,6 +60,22 @@ fn clip() -> Vec<u8> {
     w.finish().expect("flush")
 }
 
+/// One pass over the clip's bytes as `unshear video in.y4m -o -` makes it (parse, process,
+/// serialise); `on_frame` sees each frame's result.
+fn run_clip(
+    bytes: &[u8],
+    unshear: &Unshear,
+    options: ProcessOptions,
+    on_frame: impl FnMut(&unshear::video::FrameResult),
+) -> Vec<u8> {
+    let mut reader = Y4mReader::new(black_box(bytes), 1 << 24).expect("clip");
+    let mut writer =
+        Y4mWriter::with_header(Vec::with_capacity(bytes.len()), reader.header()).expect("header");
+    let mut processor = VideoProcessor::new(unshear, options);
+    run(&mut reader, Some(&mut writer), &mut processor, on_frame).expect("run");
+    writer.finish().expect("flush")
+}
+
 fn bench_video(c: &mut Criterion) {
     let bytes = clip();
     let mut group = c.benchmark_group("video_1920x1080_420");
@@ -77,27 +93,116 @@ fn bench_video(c: &mut Criterion) {
         .expect("built-in models");
         group.bench_function(name, |b| {
             b.iter(|| {
-                let mut reader =
-                    Y4mReader::new(black_box(bytes.as_slice()), 1 << 24).expect("clip");
-                let mut writer =
-                    Y4mWriter::with_header(Vec::with_capacity(bytes.len()), reader.header())
-                        .expect("header");
-                let mut processor = VideoProcessor::new(&unshear, ProcessOptions::default());
                 let mut faces = 0usize;
-                run(&mut reader, Some(&mut writer), &mut processor, |r| {
+                let out = run_clip(&bytes, &unshear, ProcessOptions::default(), |r| {
                     faces += r.faces.len()
-                })
-                .expect("run");
+                });
                 assert!(
                     faces >= FRAMES * 9 / 10,
                     "face found in most frames: {faces}"
                 );
-                writer.finish().expect("flush")
+                out
             })
         });
     }
     group.finish();
 }
 
-criterion_group!(benches, bench_video);
+/// A physically made pan (the rolling-shutter simulator over the three fixture faces: rows
+/// read over 0.8 of the frame interval, a pan that stops and turns with peak k 0.25, 1/250 s
+/// of motion blur), as y4m bytes.
+fn pan_clip() -> Vec<u8> {
+    use unshear::dev::simulate::{Profile, Scene, ScenePhoto, SimulationParams, Simulator};
+    let photos: Vec<ScenePhoto> = ["subject01", "subject03", "subject14"]
+        .iter()
+        .map(|name| ScenePhoto {
+            image: unshear::imageio::read_image(
+                format!(
+                    "{}/tests/fixtures/faces/{name}.normal.jpeg",
+                    env!("CARGO_MANIFEST_DIR")
+                )
+                .as_ref(),
+                1 << 24,
+            )
+            .expect("fixture"),
+            faces: Vec::new(),
+        })
+        .collect();
+    let scene = Scene::from_images(&photos, H).expect("scene");
+    let rho = 0.8;
+    let params = SimulationParams {
+        width: W,
+        height: H,
+        frames: FRAMES as u32,
+        readout_fraction: rho,
+        motion: Profile::Pause {
+            v: 0.25 * f64::from(H) / rho,
+        },
+        ..SimulationParams::default()
+    };
+    let sim = Simulator::new(scene, params).expect("simulator");
+    let format = VideoFormat {
+        width: W,
+        height: H,
+        chroma: Chroma::Yuv420,
+        full_range: false,
+        frame_rate: (30, 1),
+        bit_depth: 8,
+    };
+    let mut w = Y4mWriter::new(Vec::new(), &format).expect("header");
+    for n in 0..FRAMES as u32 {
+        let (img, _) = sim.render(n).expect("render");
+        let f = unshear::video::color::image_to_yuv(
+            &DynamicImage::ImageRgb8(img),
+            Chroma::Yuv420,
+            false,
+        );
+        w.write_frame(&f).expect("frame");
+    }
+    w.finish().expect("flush")
+}
+
+/// The pan: today's faces-only model against motion as the ruler (the readout calibrated on
+/// the clip, as `unshear video` does, and given), in the same run.
+fn bench_pan(c: &mut Criterion) {
+    let bytes = pan_clip();
+    let mut group = c.benchmark_group("video_1920x1080_pan");
+    group.throughput(Throughput::Elements(FRAMES as u64));
+    group.sample_size(10);
+    let unshear = Unshear::new(unshear::Config::video()).expect("built-in models");
+    let base = ProcessOptions {
+        network_budget: unshear.config().network_budget,
+        ..ProcessOptions::default()
+    };
+    for (name, options) in [
+        (
+            "faces_alone",
+            ProcessOptions {
+                motion: false,
+                ..base
+            },
+        ),
+        (
+            "motion_calibrated",
+            ProcessOptions {
+                calibration_window: unshear::video::process::DEFAULT_CALIBRATION_WINDOW,
+                ..base
+            },
+        ),
+        (
+            "motion_given",
+            ProcessOptions {
+                readout_fraction: Some(0.8),
+                ..base
+            },
+        ),
+    ] {
+        group.bench_function(name, |b| {
+            b.iter(|| run_clip(&bytes, &unshear, options, |_| {}))
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench_video, bench_pan);
 criterion_main!(benches);

@@ -300,9 +300,20 @@ fn command_line_json_folders_and_errors() {
         let keys: Vec<&str> = obj.keys().map(String::as_str).collect();
         assert_eq!(
             keys,
-            ["faces", "frame", "k", "k_raw"],
-            "serde_json sorts keys"
+            [
+                "faces",
+                "frame",
+                "k",
+                "k_raw",
+                "k_source",
+                "readout_fraction",
+                "velocity"
+            ],
+            "serde_json sorts keys; faces_disagree only when true"
         );
+        // A fixture face panned on a flat canvas: nothing calibrates the readout.
+        assert!(obj["readout_fraction"].is_null());
+        assert!(["faces", "none"].contains(&obj["k_source"].as_str().unwrap()));
         assert_eq!(obj["frame"], i);
         assert!(obj["k"].is_number());
         assert!(obj["k_raw"].is_number() || obj["k_raw"].is_null());
@@ -337,7 +348,7 @@ fn command_line_json_folders_and_errors() {
             assert!((a - b).abs() < 0.05, "one crop {a} against two {b}");
         }
     }
-    // The face objects have the shape `estimate --json` gives.
+    // The face objects have the shape `estimate --json` gives, with the face's track and motion.
     let face = &lines[0]["faces"][0];
     let mut keys: Vec<&str> = face
         .as_object()
@@ -346,7 +357,13 @@ fn command_line_json_folders_and_errors() {
         .map(String::as_str)
         .collect();
     keys.sort();
-    assert_eq!(keys, common::FACE_JSON_KEYS);
+    let mut want: Vec<&str> = common::FACE_JSON_KEYS.to_vec();
+    want.extend(["k_motion", "track", "velocity"]);
+    want.sort();
+    assert_eq!(
+        keys, want,
+        "the stills' face keys, and the track and its motion"
+    );
 
     // y4m -> frame folder -> y4m.
     let folder = dir.path().join("frames");

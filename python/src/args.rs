@@ -72,6 +72,16 @@ pub fn fps(value: &Bound<'_, PyAny>) -> PyResult<f64> {
     Ok(x)
 }
 
+pub fn readout_fraction(value: &Bound<'_, PyAny>) -> PyResult<Option<f64>> {
+    if value.is_none() {
+        return Ok(None);
+    }
+    let x = real("readout_fraction", value)?;
+    unshear::video::readout::check_readout_fraction(x)
+        .map(Some)
+        .map_err(|e| PyValueError::new_err(e.to_string()))
+}
+
 pub fn hold(value: &Bound<'_, PyAny>) -> PyResult<f64> {
     let x = real("hold", value)?;
     if !(x.is_finite() && x >= 0.0) {

@@ -10,7 +10,9 @@ use pyo3::types::{PyDict, PyList, PyType};
 use unshear::imageio::DEFAULT_MAX_PIXELS;
 use unshear::video::temporal::FilterParams;
 use unshear::video::tracker::TrackerParams;
-use unshear::video::{FrameResult, KSource, ProcessOptions, VideoFrame, VideoProcessor};
+use unshear::video::{
+    FrameResult, KSource, ProcessOptions, ShearSource, VideoFrame, VideoProcessor,
+};
 use unshear::Readout;
 
 use crate::args;
@@ -96,6 +98,26 @@ impl Frame {
         faces(&self.result.faces)
     }
 
+    /// Where ``k`` came from: ``"motion"`` (image velocity times the line time), ``"faces"``
+    /// or ``"none"`` (no measurement: the last ``k`` held or decaying).
+    #[getter]
+    fn k_source(&self) -> &'static str {
+        source_name(self.result.k_source)
+    }
+
+    /// The readout fraction in use for this frame (given, or calibrated so far), or ``None``.
+    #[getter]
+    fn readout_fraction(&self) -> Option<f64> {
+        self.result.readout_fraction
+    }
+
+    /// The image velocity ``(vx, vy)`` at the middle row's time, pixels per frame, when
+    /// measured.
+    #[getter]
+    fn velocity(&self) -> Option<(f64, f64)> {
+        self.result.velocity.map(|[x, y]| (x, y))
+    }
+
     /// The frame's line of ``unshear video --json`` as a dict (``frame``, ``k_raw``, ``k``,
     /// ``faces``), not rounded.
     fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
@@ -103,6 +125,9 @@ impl Frame {
         d.set_item("frame", self.result.index)?;
         d.set_item("k_raw", self.result.k_raw)?;
         d.set_item("k", self.result.k)?;
+        d.set_item("k_source", source_name(self.result.k_source))?;
+        d.set_item("readout_fraction", self.result.readout_fraction)?;
+        d.set_item("velocity", self.velocity())?;
         let list = PyList::empty(py);
         for f in self.faces() {
             list.append(f.to_dict(py)?)?;
@@ -147,6 +172,14 @@ impl Frame {
                 .map_or("None".to_string(), |k| format!("{k:.4}")),
             self.result.faces.len()
         )
+    }
+}
+
+fn source_name(s: ShearSource) -> &'static str {
+    match s {
+        ShearSource::Motion => "motion",
+        ShearSource::Faces => "faces",
+        ShearSource::None => "none",
     }
 }
 
@@ -207,6 +240,9 @@ impl VideoCorrector {
         k_source = "filtered",
         readout = "rows",
         interp = "linear",
+        readout_fraction = None,
+        motion = true,
+        vertical = false,
         correct = true,
         bgr = false,
         max_pixels = DEFAULT_MAX_PIXELS,
@@ -225,6 +261,9 @@ impl VideoCorrector {
         k_source: &str,
         readout: &str,
         interp: &str,
+        #[pyo3(from_py_with = args::readout_fraction)] readout_fraction: Option<f64>,
+        motion: bool,
+        vertical: bool,
         correct: bool,
         bgr: bool,
         #[pyo3(from_py_with = args::max_pixels)] max_pixels: u64,
@@ -270,6 +309,10 @@ impl VideoCorrector {
             // Frames come as the caller has them (OpenCV turns a rotated clip's upright).
             rotation: 0,
             readout,
+            readout_fraction,
+            motion,
+            vertical,
+            ..ProcessOptions::default()
         };
         let stream = Stream::new(unshear, |u| VideoProcessor::new(u, options));
         Ok(Self {

@@ -50,7 +50,19 @@ def test_frames_come_back_in_order_corrected(faces: list[np.ndarray]) -> None:
     assert all(abs(f.k - 0.25) < 0.05 for f in out[4:]), [round(f.k, 3) for f in out]
     assert all(len(f.faces) == 1 for f in tracked)
     d = out[-1].to_dict()
-    assert set(d) == {"frame", "k_raw", "k", "faces"} and d["frame"] == 15
+    assert set(d) == {
+        "frame",
+        "k_raw",
+        "k",
+        "k_source",
+        "readout_fraction",
+        "velocity",
+        "faces",
+    }
+    assert d["frame"] == 15
+    # A face drifting a pixel a frame cannot carry a shear of 0.25 under a rolling shutter:
+    # no readout is calibrated, the faces decide.
+    assert d["k_source"] == "faces" and d["readout_fraction"] is None
     assert "Frame(index=15" in repr(out[-1])
     # The corrected frame is the input de-sheared by k_applied.
     last = out[-1]
@@ -96,6 +108,8 @@ def test_bad_frames_and_settings(faces: list[np.ndarray]) -> None:
         ({"k_source": "best"}, "k_source"),
         ({"interp": "nearest"}, "interp"),
         ({"min_confidence": 2}, "confidence 2 is outside 0 to 1"),
+        ({"readout_fraction": 1.5}, "readout fraction"),
+        ({"readout_fraction": 0}, "readout fraction"),
     ]:
         with pytest.raises(ValueError, match=match):
             unshear.VideoCorrector(**kwargs)  # type: ignore[arg-type]
@@ -180,3 +194,27 @@ def test_frames_read_by_columns_are_measured_and_corrected_vertically(
     assert abs(rows[-1].k - out[-1].k) > 0.01
     with pytest.raises(ValueError, match="readout"):
         unshear.VideoCorrector(readout="diagonal")  # type: ignore[arg-type]
+
+
+def test_a_pan_with_a_known_readout_is_corrected_from_motion() -> None:
+    """A textured wall panned 40 px a frame, rows read over 0.8 of the frame interval (k =
+    0.8 * 40 / 240): with the readout given, every frame's k comes from the measured motion,
+    with no face in view."""
+    rng = np.random.default_rng(3)
+    blocks = rng.integers(0, 255, (60, 600), dtype=np.uint8)
+    wall = np.repeat(np.repeat(blocks, 4, 0), 4, 1)
+    v, rho = 40, 0.8
+    k = rho * v / 240
+    frames = []
+    for n in range(12):
+        x = 1200 - v * n  # the view moves left: the content moves right
+        view = np.ascontiguousarray(wall[:, x : x + 320])
+        frames.append(unshear.distort(view, k))
+    out = run(unshear.VideoCorrector(fps=30, readout_fraction=rho), frames)
+    assert len(out) == 12
+    for f in out:
+        assert f.k_source == "motion" and f.readout_fraction == rho
+        assert f.velocity is not None and abs(f.velocity[0] - v) < 1.0
+        assert abs(f.k - k) < 0.01, (f.index, f.k, k)
+    faces_only = run(unshear.VideoCorrector(fps=30, readout_fraction=rho, motion=False), frames)
+    assert all(f.k_source != "motion" for f in faces_only)

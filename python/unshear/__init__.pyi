@@ -297,8 +297,19 @@ class Frame:
     @property
     def faces(self) -> list[Face]:
         """Every tracked face with an estimate."""
+    @property
+    def k_source(self) -> Literal["motion", "faces", "none"]:
+        """Where ``k`` came from: the measured motion times the line time, the faces, or
+        nothing (the last ``k`` held or decaying)."""
+    @property
+    def readout_fraction(self) -> float | None:
+        """The readout fraction in use for this frame (given, or calibrated so far)."""
+    @property
+    def velocity(self) -> tuple[float, float] | None:
+        """The image velocity ``(vx, vy)`` at the middle row's time, pixels per frame."""
     def to_dict(self) -> dict[str, Any]:
         """The frame's line of ``unshear video --json`` (``frame``, ``k_raw``, ``k``,
+        ``k_source``, ``readout_fraction``, ``velocity``,
         ``faces``), not rounded."""
 
 @final
@@ -320,6 +331,12 @@ class VideoCorrector:
     ``fps`` and ``decay`` are above 0, ``hold`` at least 0 (seconds). Bad values raise
     ``ValueError`` and wrong types ``TypeError``, as for ``Unshear``.
 
+    Once the readout fraction is known (``readout_fraction``, from a data sheet or ``unshear
+    calibrate``; otherwise calibrated on the stream from its faces), each frame's ``k`` comes
+    from the image motion measured between frames, ``k = readout_fraction * v / H``, with a
+    per-row offset when the pan changes speed during the readout; ``motion=False`` keeps the
+    faces alone, ``vertical=True`` also undoes vertical motion's stretch.
+
     ``readout="columns"`` is for frames turned upright from a clip recorded turned a quarter
     (a phone held upright; OpenCV turns them so): read out along their columns, their ``k`` is
     the vertical shear ``y' = y + k x`` and they are corrected along their columns.
@@ -338,6 +355,9 @@ class VideoCorrector:
         k_source: Literal["filtered", "raw"] = "filtered",
         readout: Literal["rows", "columns"] = "rows",
         interp: Interp = "linear",
+        readout_fraction: float | None = None,
+        motion: bool = True,
+        vertical: bool = False,
         correct: bool = True,
         bgr: bool = False,
         max_pixels: int = ...,

@@ -4,6 +4,7 @@
 pub mod dataset;
 pub mod eval;
 pub mod landmark_crops;
+pub mod simulate;
 pub mod train;
 
 /// The trainers' seeded generator, for the example programs that cut training data.

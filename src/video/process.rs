@@ -1,5 +1,7 @@
-//! One frame at a time: track the faces, estimate `k` on each, filter it over time, correct the
-//! frame; and the threaded loop that reads, processes and writes a whole clip.
+//! One frame at a time: measure the motion into it, track the faces and estimate `k` on each,
+//! calibrate the readout from them, take `k` (and each row's offset) from the motion once the
+//! readout is known, else filter the faces' `k` over time, correct the frame; and the threaded
+//! loop that reads, processes and writes a whole clip.
 
 use std::collections::VecDeque;
 use std::sync::mpsc;
@@ -9,13 +11,18 @@ use image::GrayImage;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use super::motion::{BandShift, FrameShift, MotionEstimator, MotionParams};
+use super::readout::{
+    row_time, Calibration, CalibrationParams, ReadoutCalibrator, RowMotion, ShearSample,
+    VelocityCurve, VelocitySample,
+};
 use super::temporal::{FilterParams, ShearSmoother, Update, DEFAULT_SMOOTHING_LAG};
 use super::tracker::{FaceTracker, TrackerParams, TrackerStats};
 use super::VideoFrame;
 use crate::locate::network::Budget;
 use crate::pipeline::{combined_shear, FaceStart};
 use crate::warp::Interpolation;
-use crate::{FaceReport, Readout, Rect, Result, Unshear};
+use crate::{FaceReport, Readout, Rect, Region, Result, Unshear};
 
 /// Which `k` corrects the frames.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -25,6 +32,20 @@ pub enum KSource {
     Filtered,
     /// This frame's own estimate; the filtered value on frames without one.
     Raw,
+}
+
+/// Where a frame's `k` came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ShearSource {
+    /// The image velocity measured between frames times the line time (the readout fraction
+    /// known or calibrated).
+    Motion,
+    /// The faces' shape: this frame's faces, filtered over time.
+    Faces,
+    /// No measurement: the last `k` held, or decaying to 0.
+    #[default]
+    None,
 }
 
 /// Settings of a video run (default: correct with the smoothed `k`, linear interpolation).
@@ -58,7 +79,33 @@ pub struct ProcessOptions {
     /// converted to the vertical shear, and the frames (images only) de-sheared along their
     /// columns.
     pub readout: Readout,
+    /// The camera's readout fraction `rho` (readout time over frame interval) when known, from a
+    /// data sheet or an earlier calibration; `None`: calibrated on the clip from its faces.
+    pub readout_fraction: Option<f64>,
+    /// Take each frame's shear from the measured motion once `rho` is known (false: from the
+    /// faces alone, as without a rolling-shutter model). Frames turned a quarter
+    /// ([`Self::rotation`] 90 or -90, [`Readout::Columns`]) always use the faces.
+    pub motion: bool,
+    /// Also undo vertical motion's stretch (each row read from where the middle row's time puts
+    /// it); off by default.
+    pub vertical: bool,
+    /// [`Region::Image`]: the whole frame (a camera's pan); [`Region::Face`]: each face region
+    /// with its own shear, from its own motion once the readout is known (a subject moving in
+    /// front of a still camera), the rest untouched.
+    pub region: Region,
+    /// While `rho` is being calibrated, hold up to this many frames back, so that they too are
+    /// corrected from motion once it is known (memory: this many decoded frames; latency: up
+    /// to this many frames at the start of a clip). 0 by default (the latency stays
+    /// [`Self::smoothing_lag`]); `unshear video` holds [`DEFAULT_CALIBRATION_WINDOW`].
+    pub calibration_window: usize,
+    /// The motion estimator's settings.
+    pub motion_params: MotionParams,
+    /// The readout calibration's settings.
+    pub calibration: CalibrationParams,
 }
+
+/// Frames `unshear video` holds back while the readout is calibrated (2 s at 30 frames/s).
+pub const DEFAULT_CALIBRATION_WINDOW: usize = 60;
 
 impl Default for ProcessOptions {
     fn default() -> Self {
@@ -72,6 +119,13 @@ impl Default for ProcessOptions {
             network_budget: Budget::VIDEO,
             rotation: 0,
             readout: Readout::Rows,
+            readout_fraction: None,
+            motion: true,
+            vertical: false,
+            region: Region::Image,
+            calibration_window: 0,
+            motion_params: MotionParams::default(),
+            calibration: CalibrationParams::default(),
         }
     }
 }
@@ -95,13 +149,92 @@ pub struct FrameResult {
     pub update: Update,
     /// Every tracked face with an estimate, as [`Unshear::estimate_face`] reports it.
     pub faces: Vec<FaceReport>,
+    /// The track of each face (same order): a face keeps its number from frame to frame.
+    pub tracks: Vec<u64>,
+    /// Each face's own image velocity `[vx, vy]`, pixels per frame: its eyes' displacement
+    /// from the frame before and to the frame after (averaged when both are known).
+    pub face_velocities: Vec<Option<[f64; 2]>>,
+    /// Each face's shear from its own motion, `rho * vx / H`, once the readout is known.
+    pub face_k_motion: Vec<Option<f64>>,
+    /// Where [`Self::k`] came from.
+    pub k_source: ShearSource,
+    /// The readout fraction in use for this frame (given, or calibrated so far).
+    pub readout_fraction: Option<f64>,
+    /// The image velocity at the middle row's time, `[vx, vy]` pixels per frame (positive:
+    /// content moving right and down), when motion was measured.
+    pub velocity: Option<[f64; 2]>,
+    /// The faces' own shear (`k_raw`) differs from the motion's by more than a face's reading
+    /// can (its noise and its own bias, 3 sigma): reported, not hidden.
+    pub faces_disagree: bool,
+    /// The per-row offsets the frame was corrected by (motion only): output pixel `(x, y)` was
+    /// read from `(x + row_shifts[y], y)`.
+    #[serde(skip)]
+    pub row_shifts: Option<Vec<f64>>,
 }
 
-/// Tracker, estimator and smoother for one clip.
+/// One analysed frame waiting to be corrected and returned.
+#[derive(Debug)]
+struct Pending {
+    frame: VideoFrame,
+    result: FrameResult,
+    /// The faces' smoothed `k`, once the smoother has it.
+    smoothed: Option<f64>,
+    /// The content's displacement from the previous frame to this one.
+    before: Option<FrameShift>,
+    /// ... and from this one to the next.
+    after: Option<FrameShift>,
+}
+
+/// Readings kept for the readout's calibration at most (then the fit stops growing: a
+/// camera's readout is a constant, known well long before).
+const MAX_READINGS: usize = 4000;
+
+/// One face's shear reading for the readout's calibration.
+#[derive(Debug, Clone, Copy)]
+struct Reading {
+    track: u64,
+    frame: u64,
+    k: f64,
+    weight: f64,
+    /// Its eyes' row.
+    row: f64,
+    /// Its own velocity from its eyes' displacement between frames, pixels per frame.
+    own_velocity: f64,
+}
+
+/// A face's place in one frame, for following it and for the readout calibration.
+#[derive(Debug, Clone, Copy)]
+struct TrackPoint {
+    track: u64,
+    /// Eye midpoint.
+    mid: crate::Point,
+    eye_distance: f64,
+    /// Its accepted shear estimate and that estimate's weight.
+    k: Option<f64>,
+    weight: f64,
+    /// Its displacement from the frame before, when the track was there.
+    velocity: Option<(f64, f64)>,
+}
+
+/// How the frames' `k` were found over a run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct SourceCounts {
+    /// Frames whose `k` came from motion.
+    pub motion: u64,
+    /// Frames whose `k` came from their faces.
+    pub faces: u64,
+    /// Frames without a measurement (the last `k` held or decaying).
+    pub none: u64,
+    /// Motion frames whose faces disagreed with the motion ([`FrameResult::faces_disagree`]).
+    pub disagreements: u64,
+}
+
+/// Tracker, estimator, motion model and smoother for one clip.
 ///
 /// Frames go in with [`Self::process`] and come out, in order, [`ProcessOptions::smoothing_lag`]
-/// frames later (the smoother needs the estimates of the frames after each one); at the end of
-/// the stream [`Self::finish`] returns the frames still held.
+/// frames later (the smoother needs the estimates of the frames after each one), or up to
+/// [`ProcessOptions::calibration_window`] frames later while the readout fraction is being
+/// calibrated; at the end of the stream [`Self::finish`] returns the frames still held.
 #[derive(Debug)]
 pub struct VideoProcessor<'a> {
     unshear: &'a Unshear,
@@ -113,8 +246,34 @@ pub struct VideoProcessor<'a> {
     smoother: ShearSmoother,
     options: ProcessOptions,
     next_index: u64,
-    /// Analysed frames waiting for their smoothed `k`, oldest first.
-    pending: VecDeque<(VideoFrame, FrameResult)>,
+    /// Analysed frames waiting for their smoothed `k` (or for the readout), oldest first.
+    pending: VecDeque<Pending>,
+    motion: MotionEstimator,
+    /// The content's displacement into the last frame analysed.
+    last_shift: Option<FrameShift>,
+    /// The content's displacement into the frame before the last one, and into the one before
+    /// that.
+    prev_shift: Option<FrameShift>,
+    prev_prev_shift: Option<FrameShift>,
+    /// The displacement into the last frame returned, and its number.
+    emitted_before: Option<(u64, FrameShift)>,
+    /// Every face reading for the readout's calibration, and the band displacements around
+    /// the frames they were read in.
+    readings: Vec<Reading>,
+    reading_bands: std::collections::HashMap<u64, Vec<(f64, BandShift)>>,
+    /// The last fit of the readout over [`Self::readings`].
+    fit: Option<Calibration>,
+    /// The frame height (rows), for the readings' rates.
+    height: u32,
+    /// The readout fraction in use: given, or calibrated once known.
+    rho: Option<f64>,
+    /// Set when the calibration window filled before the readout was known: frames are no
+    /// longer held for it.
+    window_closed: bool,
+    /// The faces of the last two frames analysed (oldest first), with their frame numbers.
+    recent: VecDeque<(u64, Vec<TrackPoint>)>,
+    next_track: u64,
+    counts: SourceCounts,
 }
 
 impl<'a> VideoProcessor<'a> {
@@ -129,6 +288,20 @@ impl<'a> VideoProcessor<'a> {
             options,
             next_index: 0,
             pending: VecDeque::with_capacity(options.smoothing_lag.min(64) + 1),
+            motion: MotionEstimator::new(options.motion_params),
+            last_shift: None,
+            prev_shift: None,
+            prev_prev_shift: None,
+            emitted_before: None,
+            readings: Vec::new(),
+            reading_bands: std::collections::HashMap::new(),
+            fit: None,
+            height: 0,
+            rho: options.readout_fraction,
+            window_closed: false,
+            recent: VecDeque::with_capacity(3),
+            next_track: 0,
+            counts: SourceCounts::default(),
         }
     }
 
@@ -151,25 +324,102 @@ impl<'a> VideoProcessor<'a> {
         self.pending.len()
     }
 
-    /// Tracks and estimates one frame's luma and runs the causal filter; `k` is still the
-    /// causal value. Returns the result and the smoothed `k` of the oldest pending frame, if
-    /// it is due.
-    fn analyse(&mut self, stored: &GrayImage) -> (FrameResult, Option<f64>) {
+    /// The readout fraction in use: the one given, or the calibration's once it is known.
+    pub fn readout_fraction(&self) -> Option<f64> {
+        self.rho
+    }
+
+    /// The calibration of the readout fraction from every face reading so far, known or not
+    /// (`None` without readings that move).
+    pub fn calibration(&self) -> Option<Calibration> {
+        self.fit
+    }
+
+    /// How the frames returned so far got their `k`.
+    pub fn source_counts(&self) -> SourceCounts {
+        self.counts
+    }
+
+    /// Whether this clip's shear can come from motion: asked for, and frames read out along
+    /// their stored rows shown as stored (turned clips keep the faces' model).
+    fn motion_model(&self) -> bool {
+        self.options.motion && self.options.rotation == 0 && self.options.readout == Readout::Rows
+    }
+
+    /// Tracks and estimates one frame's luma, measures its motion and runs the causal filter;
+    /// returns the frame's entry (its frame still to be filled in) and the smoothed `k` of the
+    /// oldest frame not smoothed yet, when the smoother has it.
+    fn analyse(&mut self, stored: &GrayImage) -> (Pending, Option<f64>) {
+        // The motion into this frame is measured while its faces are searched for (the faces
+        // are followed from where the motion into the last frame would take them).
+        let mut motion = std::mem::take(&mut self.motion);
+        let measure = self.motion_model();
         let gray = &*upright(stored, self.options.rotation);
-        let mut faces = self.faces_in(gray);
+        let height = gray.height();
+        let (shift, mut faces) = rayon::join(
+            || measure.then(|| motion.push(stored)).flatten(),
+            || self.faces_in(gray),
+        );
+        self.motion = motion;
+        let before_last = std::mem::replace(&mut self.last_shift, shift.clone());
+        self.prev_prev_shift = std::mem::replace(&mut self.prev_shift, before_last);
         if self.options.rotation.abs() == 90 || self.options.readout == Readout::Columns {
             for f in &mut faces {
                 self.unshear.face_by_columns(f);
             }
         }
-        self.finish_analysis(faces)
+        let index = self.next_index;
+        self.next_index += 1;
+        let (tracks, face_velocities) = self.associate(index, &faces, height);
+        let face_k_motion = vec![None; faces.len()];
+        let k_raw = combined_shear(&faces);
+        let (update, due) = self.smoother.push(k_raw);
+        if let Some(last) = self.pending.back_mut() {
+            last.after = shift.clone();
+        }
+        let k_causal = self.smoother.filter().k();
+        let result = FrameResult {
+            index,
+            k_raw,
+            k: k_causal,
+            k_causal,
+            k_applied: None,
+            update,
+            faces,
+            tracks,
+            face_velocities,
+            face_k_motion,
+            k_source: ShearSource::None,
+            readout_fraction: self.rho,
+            velocity: None,
+            faces_disagree: false,
+            row_shifts: None,
+        };
+        let entry = Pending {
+            frame: VideoFrame::Image(image::DynamicImage::new_luma8(0, 0)),
+            result,
+            smoothed: None,
+            before: shift,
+            after: None,
+        };
+        (entry, due)
+    }
+
+    /// The shear to start this frame's face search from: the motion's when the readout is
+    /// known and the content's displacement into this frame was measured, else the causal
+    /// filtered shear of the faces.
+    fn view_k(&self, height: u32) -> f64 {
+        match (self.rho, &self.last_shift) {
+            (Some(rho), Some(s)) if self.motion_model() => rho * s.dx / f64::from(height.max(1)),
+            _ => self.smoother.filter().k(),
+        }
     }
 
     /// The faces of one upright frame, followed or detected and estimated.
     fn faces_in(&mut self, gray: &GrayImage) -> Vec<FaceReport> {
-        // Start from the causal filtered shear: the face is then searched for, and its
-        // features located, in a nearly upright view.
-        let view_k = self.smoother.filter().k();
+        // Start from the expected shear: the face is then searched for, and its features
+        // located, in a nearly upright view.
+        let view_k = self.view_k(gray.height());
         let unshear = self.unshear;
         let budget = self.options.network_budget;
         if unshear.uses_network_detector() {
@@ -194,15 +444,41 @@ impl<'a> VideoProcessor<'a> {
         }
     }
 
+    /// Where the face at `mid` in the last frame is expected to have moved: its track's own
+    /// last displacement, else the content's measured displacement, else nowhere.
+    fn expected_move(&self, mid: crate::Point) -> (f64, f64) {
+        let own = self.recent.back().and_then(|(_, points)| {
+            points
+                .iter()
+                .find(|p| p.mid.distance(mid) < 1e-6)
+                .and_then(|p| p.velocity)
+        });
+        own.or_else(|| self.last_shift.as_ref().map(|s| (s.dx, s.dy)))
+            .unwrap_or((0.0, 0.0))
+    }
+
     /// With the network detector: the faces of the last frame followed into this one by the
-    /// landmark network, each started from its last eyes, roll and the filtered shear
-    /// `view_k`; and on the frames where detection is due (see [`TrackerParams`]: every
-    /// `redetect_interval` frames, every `lost_interval` while no face is followed) the faces
-    /// the detector finds in the frame shrunk to `detect_width` columns that are not followed
-    /// yet.
+    /// landmark network, each started from its last eyes moved by [`Self::expected_move`],
+    /// roll and the expected shear `view_k`; and on the frames where detection is due (see
+    /// [`TrackerParams`]: every `redetect_interval` frames, every `lost_interval` while no face
+    /// is followed) the faces the detector finds in the frame shrunk to `detect_width` columns
+    /// that are not followed yet.
     fn follow_and_detect(&mut self, gray: &GrayImage, view_k: f64) -> Vec<FaceReport> {
         let unshear = self.unshear;
         let budget = self.options.network_budget;
+        let moved: Vec<FaceReport> = self
+            .followed
+            .iter()
+            .map(|f| {
+                let (dx, dy) = self.expected_move(f.right_eye.midpoint(f.left_eye));
+                let mut m = *f;
+                for p in [&mut m.right_eye, &mut m.left_eye] {
+                    p.x += dx;
+                    p.y += dy;
+                }
+                m
+            })
+            .collect();
         let stats = &mut self.network_stats;
         let frame = stats.frames;
         stats.frames += 1;
@@ -218,11 +494,11 @@ impl<'a> VideoProcessor<'a> {
                 .filter(|r| crate::pipeline::follows(last, r))
                 .map(|r| (face_box, Some(r)))
         };
-        let before = self.followed.len();
+        let before = moved.len();
         let mut found: Vec<(Rect, Option<FaceReport>)> = if before > 1 {
-            self.followed.par_iter().filter_map(follow).collect()
+            moved.par_iter().filter_map(follow).collect()
         } else {
-            self.followed.iter().filter_map(follow).collect()
+            moved.iter().filter_map(follow).collect()
         };
         stats.local_searches += before as u64;
         stats.lost += (before - found.len()) as u64;
@@ -246,41 +522,209 @@ impl<'a> VideoProcessor<'a> {
         faces
     }
 
-    /// Filters the frame's shear from its `faces` and makes its result.
-    fn finish_analysis(&mut self, faces: Vec<FaceReport>) -> (FrameResult, Option<f64>) {
-        let k_raw = combined_shear(&faces);
-        let (update, due) = self.smoother.push(k_raw);
-        let index = self.next_index;
-        self.next_index += 1;
-        let k_causal = self.smoother.filter().k();
-        let result = FrameResult {
-            index,
-            k_raw,
-            k: k_causal,
-            k_causal,
-            k_applied: None,
-            update,
-            faces,
-        };
-        (result, due)
+    /// Gives each face of frame `index` its track: the last frame's face expected nearest to it
+    /// (within one eye distance), else a new one. Adds the calibration readings of the frame
+    /// before, whose faces' velocities are now known on both sides.
+    fn associate(
+        &mut self,
+        index: u64,
+        faces: &[FaceReport],
+        height: u32,
+    ) -> (Vec<u64>, Vec<Option<[f64; 2]>>) {
+        let last: Vec<TrackPoint> = self
+            .recent
+            .back()
+            .filter(|(i, _)| i + 1 == index)
+            .map(|(_, p)| p.clone())
+            .unwrap_or_default();
+        let mut taken = vec![false; last.len()];
+        let mut points = Vec::with_capacity(faces.len());
+        for f in faces {
+            let mid = f.right_eye.midpoint(f.left_eye);
+            let eye_distance = f.right_eye.distance(f.left_eye);
+            let best = last
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| !taken[*i])
+                .map(|(i, p)| {
+                    let (dx, dy) = self.expected_move(p.mid);
+                    let at = crate::Point::new(p.mid.x + dx, p.mid.y + dy);
+                    (i, at.distance(mid), p)
+                })
+                .filter(|(_, d, p)| *d <= p.eye_distance.max(eye_distance))
+                .min_by(|a, b| a.1.total_cmp(&b.1));
+            let (track, velocity) = match best {
+                Some((i, _, p)) => {
+                    taken[i] = true;
+                    (p.track, Some((mid.x - p.mid.x, mid.y - p.mid.y)))
+                }
+                None => {
+                    self.next_track += 1;
+                    (self.next_track - 1, None)
+                }
+            };
+            points.push(TrackPoint {
+                track,
+                mid,
+                eye_distance,
+                k: f.k.filter(|_| f.refused.is_none()),
+                weight: f.confidence.clamp(0.1, 1.0),
+                velocity,
+            });
+        }
+        if self.motion_model() {
+            self.add_readings(&points, height);
+        }
+        let tracks = points.iter().map(|p| p.track).collect();
+        let velocities = points
+            .iter()
+            .map(|p| p.velocity.map(|(x, y)| [x, y]))
+            .collect();
+        self.recent.push_back((index, points));
+        while self.recent.len() > 2 {
+            self.recent.pop_front();
+        }
+        (tracks, velocities)
     }
 
-    /// Takes one frame in (tracks, estimates, filters) and returns the frame that is now due,
-    /// `smoothing_lag` frames older, with its result and corrected by the chosen `k` (unchanged
-    /// when correction is off); `None` while the first `smoothing_lag` frames fill the buffer.
+    /// The calibration readings of the last frame analysed before this one: each face with an
+    /// accepted estimate, with its own velocity from the frames on both sides of it (or one),
+    /// and the content's displacements into and out of its frame; then the readout refitted.
+    fn add_readings(&mut self, next: &[TrackPoint], height: u32) {
+        let Some((frame, points)) = self.recent.back() else {
+            return;
+        };
+        let frame = *frame;
+        self.height = height;
+        let mut added = false;
+        for p in points {
+            let Some(k) = p.k else { continue };
+            if self.readings.len() >= MAX_READINGS {
+                break;
+            }
+            let after = next
+                .iter()
+                .find(|q| q.track == p.track)
+                .and_then(|q| q.velocity);
+            let own = match (p.velocity, after) {
+                (Some(a), Some(b)) => (a.0 + b.0) / 2.0,
+                (Some(a), None) | (None, Some(a)) => a.0,
+                (None, None) => continue,
+            };
+            self.readings.push(Reading {
+                track: p.track,
+                frame,
+                k,
+                weight: p.weight,
+                row: p.mid.y,
+                own_velocity: own,
+            });
+            added = true;
+        }
+        if added {
+            let n = frame as f64;
+            let bands: Vec<(f64, BandShift)> = [
+                (n - 2.0, &self.prev_prev_shift),
+                (n - 1.0, &self.prev_shift),
+                (n, &self.last_shift),
+            ]
+            .into_iter()
+            .flat_map(|(pair, s)| {
+                s.iter()
+                    .flat_map(move |s| s.bands.iter().map(move |b| (pair, *b)))
+            })
+            .collect();
+            self.reading_bands.insert(frame, bands);
+        }
+        // Refit every frame until known, then every 15 frames (the fit visits every reading).
+        if added && (self.fit.is_none() || self.rho.is_none() || frame % 15 == 0) {
+            self.refit();
+        }
+    }
+
+    /// Fits the readout over every reading: each reading's rate is its face's velocity at its
+    /// rows' time, from the band displacements around its frame when the face moves with them
+    /// (a camera's pan: the fitted curve's velocity at that instant, exact for a pan changing
+    /// speed within the frame), else its own displacement between frames (a subject moving by
+    /// itself). Both depend on `rho` through the rows' times, so the fit is repeated from the
+    /// last estimate (0.8 at first) until it settles.
+    fn refit(&mut self) {
+        let mut rho = self
+            .fit
+            .map_or(0.8, |c| c.readout_fraction)
+            .clamp(0.05, 1.2);
+        let mut fit = None;
+        for _ in 0..3 {
+            let mut calibrator = ReadoutCalibrator::new(self.options.calibration);
+            for r in &self.readings {
+                calibrator.add(ShearSample {
+                    track: r.track,
+                    frame: r.frame,
+                    k: r.k,
+                    rate: self.reading_velocity(r, rho) / f64::from(self.height.max(1)),
+                    weight: r.weight,
+                });
+            }
+            fit = calibrator.solve();
+            match fit {
+                Some(c) if c.readout_fraction > 0.05 && c.readout_fraction <= 1.2 => {
+                    let settled = (c.readout_fraction - rho).abs() < 1e-3;
+                    rho = c.readout_fraction;
+                    if settled {
+                        break;
+                    }
+                }
+                _ => break,
+            }
+            if self.options.readout_fraction.is_none() {
+                self.rho = calibrator.known().map(|c| c.readout_fraction).or(self.rho);
+            }
+        }
+        self.fit = fit;
+    }
+
+    /// A reading's image velocity at its rows' time for readout `rho` (see [`Self::refit`]).
+    fn reading_velocity(&self, r: &Reading, rho: f64) -> f64 {
+        let h = self.height;
+        let n = r.frame as f64;
+        let Some(bands) = self.reading_bands.get(&r.frame).filter(|b| !b.is_empty()) else {
+            return r.own_velocity;
+        };
+        let samples: Vec<VelocitySample> = bands
+            .iter()
+            .map(|(pair, b)| VelocitySample::from_band(*pair, b.row, b.dx, b.dy, b.sigma, rho, h))
+            .collect();
+        let Some(curve) = VelocityCurve::fit(&samples, n + rho / 2.0) else {
+            return r.own_velocity;
+        };
+        let t = row_time(n, r.row, rho, h);
+        // What the face's own central difference measures of the curve: the mean of its two
+        // displacements.
+        let background = (curve.mean_velocity(t - 0.5).0 + curve.mean_velocity(t + 0.5).0) / 2.0;
+        if (r.own_velocity - background).abs() <= 3.0 + 0.1 * background.abs() {
+            curve.velocity(t).0
+        } else {
+            r.own_velocity
+        }
+    }
+
+    /// Takes one frame in (tracks, estimates, measures motion, filters) and returns the frames
+    /// now due, oldest first, with their results and corrected (unchanged when correction is
+    /// off): none while the first `smoothing_lag` frames fill the buffer, or while frames are
+    /// held for the readout's calibration; several when a calibration releases them.
     ///
     /// # Errors
     /// Only if the shear to apply is not finite (which the filter never produces).
-    pub fn process(&mut self, frame: VideoFrame) -> Result<Option<(VideoFrame, FrameResult)>> {
-        let (result, due) = self.analyse(&frame.luma());
-        self.pending.push_back((frame, result));
-        let Some(k) = due else {
-            return Ok(None);
-        };
-        match self.pending.pop_front() {
-            Some(entry) => self.emit(entry, k).map(Some),
-            None => Ok(None),
+    pub fn process(&mut self, frame: VideoFrame) -> Result<Vec<(VideoFrame, FrameResult)>> {
+        let (mut entry, due) = self.analyse(&frame.luma());
+        entry.frame = frame;
+        self.pending.push_back(entry);
+        if let Some(k) = due {
+            if let Some(p) = self.pending.iter_mut().find(|p| p.smoothed.is_none()) {
+                p.smoothed = Some(k);
+            }
         }
+        self.drain(false)
     }
 
     /// The end of the stream: every frame still held, in order, with `k` smoothed over all the
@@ -290,23 +734,173 @@ impl<'a> VideoProcessor<'a> {
     /// As [`Self::process`].
     pub fn finish(&mut self) -> Result<Vec<(VideoFrame, FrameResult)>> {
         let ks = self.smoother.flush();
-        let entries: Vec<_> = self.pending.drain(..).collect();
-        entries
-            .into_iter()
-            .zip(ks)
-            .map(|(entry, k)| self.emit(entry, k))
-            .collect()
+        let mut ks = ks.into_iter();
+        for p in self.pending.iter_mut().filter(|p| p.smoothed.is_none()) {
+            p.smoothed = ks.next().or(Some(p.result.k_causal));
+        }
+        self.drain(true)
     }
 
-    /// Sets the smoothed `k` of a frame and corrects it.
-    fn emit(
+    /// Returns the frames at the front that are due: smoothed, and not held for the readout.
+    fn drain(&mut self, at_end: bool) -> Result<Vec<(VideoFrame, FrameResult)>> {
+        let mut out = Vec::new();
+        while let Some(front) = self.pending.front() {
+            let Some(smoothed) = front.smoothed else {
+                break;
+            };
+            let waiting = self.motion_model() && self.rho.is_none() && !self.window_closed;
+            if waiting && !at_end {
+                if self.pending.len() <= self.options.calibration_window {
+                    break;
+                }
+                self.window_closed = true;
+            }
+            if let Some(p) = self.pending.pop_front() {
+                out.push(self.emit(p, smoothed)?);
+            }
+        }
+        Ok(out)
+    }
+
+    /// The rolling shutter's row motion in `entry`'s frame, when the readout is known and the
+    /// content's displacement around it was measured.
+    fn row_motion(&self, entry: &Pending, height: u32) -> Option<RowMotion> {
+        let rho = self.rho.filter(|_| self.motion_model())?;
+        let n = entry.result.index as f64;
+        let index = entry.result.index;
+        // The displacements into and out of this frame, and one more on each side when at hand
+        // (the frame before's and the frame after's), so the curve can follow a speed that
+        // swings within a frame.
+        let earlier = self
+            .emitted_before
+            .as_ref()
+            .filter(|(i, _)| i + 1 == index)
+            .map(|(_, s)| s);
+        let later = self
+            .pending
+            .front()
+            .filter(|p| p.result.index == index + 1)
+            .and_then(|p| p.after.as_ref());
+        let mut samples = Vec::new();
+        for (pair, shift) in [
+            (n - 2.0, earlier),
+            (n - 1.0, entry.before.as_ref()),
+            (n, entry.after.as_ref()),
+            (n + 1.0, later),
+        ] {
+            for b in shift.iter().flat_map(|s| &s.bands) {
+                samples.push(VelocitySample::from_band(
+                    pair, b.row, b.dx, b.dy, b.sigma, rho, height,
+                ));
+            }
+        }
+        let curve = VelocityCurve::fit(&samples, n + rho / 2.0)?;
+        Some(RowMotion::of(&curve, n, rho, height, self.options.vertical))
+    }
+
+    /// Completes the faces' velocities with the next frame's (now analysed, at the front of the
+    /// queue) and, once the readout is known, gives each face its shear from its own motion.
+    fn face_motion(&self, result: &mut FrameResult, height: u32) {
+        if let Some(next) = self.pending.front() {
+            let r = &next.result;
+            for (i, track) in result.tracks.iter().enumerate() {
+                let after = r
+                    .tracks
+                    .iter()
+                    .position(|t| t == track)
+                    .and_then(|j| r.face_velocities[j]);
+                let v = &mut result.face_velocities[i];
+                *v = match (*v, after) {
+                    (Some(a), Some(b)) => Some([(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0]),
+                    (a, b) => a.or(b),
+                };
+            }
+        }
+        if let Some(rho) = self.rho.filter(|_| self.motion_model()) {
+            let h = f64::from(height.max(1));
+            result.face_k_motion = result
+                .face_velocities
+                .iter()
+                .map(|v| v.map(|[vx, _]| rho * vx / h))
+                .collect();
+        }
+    }
+
+    /// `--region face`: each face region (its box enlarged as for stills) de-sheared by its
+    /// own shear: from its own motion when known, else its own estimate.
+    fn correct_faces(
         &self,
-        (frame, mut result): (VideoFrame, FrameResult),
-        k_smoothed: f64,
+        frame: VideoFrame,
+        mut result: FrameResult,
     ) -> Result<(VideoFrame, FrameResult)> {
+        let margin = 1.0 + 2.0 * crate::pipeline::FACE_REGION_MARGIN;
+        let regions: Vec<(Rect, f64)> = result
+            .faces
+            .iter()
+            .zip(&result.face_k_motion)
+            .filter_map(|(f, km)| {
+                km.or(f.k)
+                    .map(|k| (f.face_box.scaled_about_center(margin), k))
+            })
+            .collect();
+        result.k_applied = None;
+        let upright = self.options.rotation == 0 && self.options.readout == Readout::Rows;
+        if regions.is_empty() || !upright {
+            return Ok((frame, result));
+        }
+        let corrected = frame.remove_shear_in_regions(&regions, self.options.interpolation)?;
+        Ok((corrected, result))
+    }
+
+    /// Sets the frame's `k` (from motion, else the faces' smoothed value) and corrects it.
+    fn emit(&mut self, entry: Pending, k_smoothed: f64) -> Result<(VideoFrame, FrameResult)> {
+        let height = entry.frame.dimensions().1;
+        let motion = self.row_motion(&entry, height);
+        let Pending {
+            frame,
+            mut result,
+            before,
+            ..
+        } = entry;
+        self.emitted_before = before.map(|b| (result.index, b));
+        self.face_motion(&mut result, height);
         result.k = k_smoothed;
+        result.readout_fraction = self.rho;
+        result.k_source = if result.k_raw.is_some() {
+            ShearSource::Faces
+        } else {
+            ShearSource::None
+        };
+        if let Some(m) = &motion {
+            result.k = m.k;
+            result.k_source = ShearSource::Motion;
+            result.velocity = Some([m.velocity.0, m.velocity.1]);
+            let p = self.options.calibration;
+            let allowed = 3.0 * p.reading_noise.hypot(p.bias_spread);
+            result.faces_disagree = result.k_raw.is_some_and(|k| (k - m.k).abs() > allowed);
+        }
+        match result.k_source {
+            ShearSource::Motion => self.counts.motion += 1,
+            ShearSource::Faces => self.counts.faces += 1,
+            ShearSource::None => self.counts.none += 1,
+        }
+        self.counts.disagreements += u64::from(result.faces_disagree);
         if !self.options.correct {
             return Ok((frame, result));
+        }
+        if self.options.region == Region::Face {
+            return self.correct_faces(frame, result);
+        }
+        if let (Some(m), KSource::Filtered) = (motion, self.options.k_source) {
+            result.k_applied = Some(m.k);
+            let interp = self.options.interpolation;
+            let frame = match &m.sources {
+                Some(sources) => frame.resample_rows(sources)?,
+                None => frame,
+            };
+            let corrected = frame.shift_rows(&m.shifts, interp)?;
+            result.row_shifts = Some(m.shifts);
+            return Ok((corrected, result));
         }
         let k = match self.options.k_source {
             KSource::Filtered => result.k,
@@ -379,6 +973,12 @@ pub struct RunStats {
     pub rejected: u64,
     /// Tracker work counts.
     pub tracker: TrackerStats,
+    /// The readout fraction in use at the end (given, or calibrated).
+    pub readout_fraction: Option<f64>,
+    /// The calibration from every face reading of the run, known or not.
+    pub calibration: Option<Calibration>,
+    /// How the frames got their `k`.
+    pub sources: SourceCounts,
 }
 
 /// Frames in flight between the reading, processing and writing threads.
@@ -439,7 +1039,7 @@ pub fn run(
                         break;
                     }
                 };
-                if let Some(out) = processor.process(frame)? {
+                for out in processor.process(frame)? {
                     if !deliver(out) {
                         return Ok(());
                     }
@@ -465,6 +1065,9 @@ pub fn run(
         seconds: start.elapsed().as_secs_f64(),
         rejected: processor.rejected(),
         tracker: processor.tracker_stats(),
+        readout_fraction: processor.readout_fraction(),
+        calibration: processor.calibration(),
+        sources: processor.source_counts(),
     })
 }
 

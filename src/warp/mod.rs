@@ -6,6 +6,11 @@
 //! weights are computed once per row and the inner loop is a short, branch-free dot product over
 //! contiguous samples that the compiler vectorises.
 //!
+//! The same machinery takes any offset per row ([`try_shift_rows`]): under a rolling shutter a
+//! view whose speed changes during the readout offsets the rows along a curve rather than a
+//! line. The vertical counterpart, [`try_resample_rows`], moves whole rows instead (a view
+//! moving up or down during the readout stretches or squeezes the picture).
+//!
 //! Conventions used throughout this module:
 //!
 //! * **Fill.** Output pixels whose source lies outside the input are 0 in every channel (black,
@@ -291,17 +296,119 @@ pub fn try_remove_shear_gray(
     Ok((warp_buffer(gray, &plan, interp), placement))
 }
 
+/// Shift every row by its own amount: `out(x, y) = in(x + shifts[y], y)`, same size and variant.
+///
+/// The general form of [`try_remove_shear`] (which is this with `shifts[y] = k * (y - c)`, and
+/// gives the same pixels bit for bit): when the view's speed changes during a frame's readout
+/// the rows' offsets follow a curve rather than a line. The module's conventions hold (fill 0
+/// with the anti-aliased edge, integer shifts copy exactly, cubic clamped for integer samples).
+///
+/// # Errors
+/// [`Error::InvalidArgument`] when `shifts.len()` is not the image's height or a shift is not
+/// finite.
+pub fn try_shift_rows(
+    img: &DynamicImage,
+    shifts: &[f64],
+    interp: Interpolation,
+) -> Result<DynamicImage> {
+    let plan = offsets_plan(img.width(), img.height(), shifts)?;
+    Ok(per_variant!(img, |buf| warp_buffer(buf, &plan, interp)))
+}
+
+/// [`try_shift_rows`] for a grey image, without wrapping it in a [`DynamicImage`] (which would
+/// take a copy of it).
+///
+/// # Errors
+/// As [`try_shift_rows`].
+pub fn try_shift_rows_gray(
+    gray: &GrayImage,
+    shifts: &[f64],
+    interp: Interpolation,
+) -> Result<GrayImage> {
+    let plan = offsets_plan(gray.width(), gray.height(), shifts)?;
+    Ok(warp_buffer(gray, &plan, interp))
+}
+
+/// Resample the rows vertically: `out(x, y) = in(x, sources[y])`, same size and variant.
+///
+/// Undoes a vertical stretch or squeeze (a view moving up or down during the readout spreads
+/// the rows apart or packs them together). Each output row is a linear blend of the two input
+/// rows nearest its source (an integer source copies its row exactly); sources outside
+/// `[0, H - 1]` fade linearly to 0 over one row, as the horizontal edge does, and are 0 beyond.
+/// No cubic option: one blend per row keeps it a memory-speed pass, and a readout stretch is a
+/// few percent, so the rows' phases vary slowly.
+///
+/// # Errors
+/// [`Error::InvalidArgument`] when `sources.len()` is not the image's height or a source is not
+/// finite.
+pub fn try_resample_rows(img: &DynamicImage, sources: &[f64]) -> Result<DynamicImage> {
+    resample_rows_filled(img, sources, 0.0)
+}
+
+/// [`try_resample_rows`] with `fill` (in sample units) instead of 0 for the rows outside the
+/// input, e.g. black luma and neutral chroma for video planes.
+pub(crate) fn resample_rows_filled(
+    img: &DynamicImage,
+    sources: &[f64],
+    fill: f64,
+) -> Result<DynamicImage> {
+    check_rows(sources, img.height(), "source row")?;
+    Ok(per_variant!(img, |buf| resample_buffer(buf, sources, fill)))
+}
+
 /// The output canvas of `shear` applied to a `width x height` image, and where the input lands.
-fn plan(width: u32, height: u32, shear: Shear, canvas: Canvas) -> Result<(Plan, Placement)> {
+fn plan(
+    width: u32,
+    height: u32,
+    shear: Shear,
+    canvas: Canvas,
+) -> Result<(Plan<'static>, Placement)> {
     let (out_w, out_h, placement) = sheared_canvas(width, height, shear, canvas)?;
     let plan = Plan {
         out_w: out_w as usize,
         out_h: out_h as usize,
         ox: placement.offset_x,
         oy: placement.offset_y as usize,
-        shear,
+        rows: RowSource::Shear(shear),
     };
     Ok((plan, placement))
+}
+
+/// The same-size plan of [`try_shift_rows`]: row `y` reads `x_in = X + shifts[y]`.
+fn offsets_plan(width: u32, height: u32, shifts: &[f64]) -> Result<Plan<'_>> {
+    check_rows(shifts, height, "row shift")?;
+    Ok(Plan {
+        out_w: width as usize,
+        out_h: height as usize,
+        ox: 0.0,
+        oy: 0,
+        rows: RowSource::Offsets {
+            table: shifts,
+            // Beyond this distance every output pixel is fill anyway; clamping keeps the integer
+            // tap positions far from overflow for absurd (but finite) shifts.
+            limit: 2.0 * f64::from(width) + 8.0,
+        },
+    })
+}
+
+/// Checks a per-row table (row shifts or source rows): one finite value per row.
+///
+/// # Errors
+/// [`Error::InvalidArgument`] naming `what` when the length is not `height` or a value is not
+/// finite.
+pub(crate) fn check_rows(values: &[f64], height: u32, what: &str) -> Result<()> {
+    if values.len() != height as usize {
+        return Err(Error::InvalidArgument(format!(
+            "{} {what} values for an image of {height} rows",
+            values.len()
+        )));
+    }
+    if let Some((y, v)) = values.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+        return Err(Error::InvalidArgument(format!(
+            "{what} of row {y} is not finite ({v})"
+        )));
+    }
+    Ok(())
 }
 
 fn negate(shear: Shear) -> Shear {
@@ -357,13 +464,34 @@ pub fn remove_shear_in_region(
     per_variant!(img, |buf| warp_region_buffer(buf, &local, interp))
 }
 
-/// A whole-image warp: output row `Y` is input row `Y + oy` with `x_in = X + ox - s(Y + oy)`.
-struct Plan {
+/// A whole-image warp: output row `Y` is input row `y = Y + oy`, read at
+/// `x_in = X + Plan::source_offset(y)`.
+struct Plan<'a> {
     out_w: usize,
     out_h: usize,
     ox: f64,
     oy: usize,
-    shear: Shear,
+    rows: RowSource<'a>,
+}
+
+/// Where the horizontal offset of each row of a [`Plan`] comes from.
+#[derive(Clone, Copy)]
+enum RowSource<'a> {
+    /// A shear: input row `y` lands at `x + s(y)`, so it is read at `x_in = X + ox - s(y)`.
+    Shear(Shear),
+    /// One offset per input row: `x_in = X + ox + table[y]`, clamped to `±limit`.
+    Offsets { table: &'a [f64], limit: f64 },
+}
+
+impl Plan<'_> {
+    /// `x_in - X` for input row `y` (not yet snapped to an integer).
+    #[inline]
+    fn source_offset(&self, y: usize) -> f64 {
+        match self.rows {
+            RowSource::Shear(shear) => self.ox - shear.row_shift(y as f64),
+            RowSource::Offsets { table, limit } => (self.ox + table[y]).clamp(-limit, limit),
+        }
+    }
 }
 
 /// One sample type (u8, u16, f32) and its row kernels.
@@ -383,6 +511,19 @@ trait Sample: Copy + Default + Send + Sync + 'static {
         interp: Interpolation,
     ) {
         shift_row_generic(src, dst, channels, n, f as f32, interp);
+    }
+
+    /// `dst = (1 - f) a + f b` sample by sample, `0 <= f < 1`; `f == 0` copies `a` exactly.
+    fn lerp_rows(dst: &mut [Self], a: &[Self], b: &[Self], f: f64) {
+        if f == 0.0 {
+            dst.copy_from_slice(a);
+            return;
+        }
+        let f = f as f32;
+        let w0 = 1.0 - f;
+        for ((o, &p0), &p1) in dst.iter_mut().zip(a).zip(b) {
+            *o = Self::from_f32(w0 * p0.to_f32() + f * p1.to_f32());
+        }
     }
 }
 
@@ -404,6 +545,15 @@ impl Sample for u8 {
         interp: Interpolation,
     ) {
         shift_row_u8(src, dst, channels, n, f, interp);
+    }
+    /// The fixed-point blend of [`shift_row_u8`] (phase quantised to 1/256).
+    fn lerp_rows(dst: &mut [u8], a: &[u8], b: &[u8], f: f64) {
+        let q = (f * 256.0).round() as u16;
+        match q {
+            0 => dst.copy_from_slice(a),
+            256.. => dst.copy_from_slice(b),
+            _ => linear_u8_dispatch(dst, a, b, 256 - q, q),
+        }
     }
 }
 
@@ -730,7 +880,7 @@ where
             .with_min_len(8)
             .for_each(|(y, row)| {
                 let yi = y + plan.oy;
-                let d = snap(plan.ox - plan.shear.row_shift(yi as f64));
+                let d = snap(plan.source_offset(yi));
                 let n = d.floor();
                 let src_row = &src[yi * in_row..(yi + 1) * in_row];
                 P::Subpixel::shift_row(src_row, row, channels, n as i64, d - n, interp);
@@ -738,6 +888,47 @@ where
     }
     ImageBuffer::from_raw(plan.out_w as u32, plan.out_h as u32, out)
         .expect("output buffer has exactly out_w * out_h * channels samples")
+}
+
+fn resample_buffer<P>(buf: &Buffer<P>, sources: &[f64], fill: f64) -> Buffer<P>
+where
+    P: Pixel,
+    P::Subpixel: Sample,
+{
+    let channels = usize::from(P::CHANNEL_COUNT);
+    let row_len = buf.width() as usize * channels;
+    let h = buf.height() as usize;
+    let src: &[P::Subpixel] = buf.as_raw();
+    let fill = P::Subpixel::from_f32(fill as f32);
+    let fill_row = vec![fill; row_len];
+    let mut out = vec![P::Subpixel::default(); row_len * h];
+    // Input row `i` (a whole number), or the fill row outside the input.
+    let row_at = |i: f64| -> Option<&[P::Subpixel]> {
+        (i >= 0.0 && i < h as f64).then(|| {
+            let i = i as usize;
+            &src[i * row_len..(i + 1) * row_len]
+        })
+    };
+    if row_len > 0 {
+        out.par_chunks_mut(row_len)
+            .zip(sources)
+            .with_min_len(8)
+            .for_each(|(dst, &s)| {
+                let p = snap(s);
+                let n = p.floor();
+                match (row_at(n), row_at(n + 1.0)) {
+                    (None, None) => dst.copy_from_slice(&fill_row),
+                    (a, b) => P::Subpixel::lerp_rows(
+                        dst,
+                        a.unwrap_or(&fill_row),
+                        b.unwrap_or(&fill_row),
+                        p - n,
+                    ),
+                }
+            });
+    }
+    ImageBuffer::from_raw(buf.width(), buf.height(), out)
+        .expect("output buffer has exactly width * height * channels samples")
 }
 
 /// Parameters of [`remove_shear_in_region`].
@@ -829,3 +1020,6 @@ where
 
 #[cfg(test)]
 mod tests;
+
+#[cfg(test)]
+mod rows_tests;

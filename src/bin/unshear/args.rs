@@ -26,10 +26,14 @@ pub enum Command {
     /// Correct a video: a video file (through ffmpeg), a y4m file or pipe (`-`), or a folder of
     /// numbered frames.
     Video(VideoArgs),
+    /// Find a camera's readout time from a clip: the faces' shear against their motion.
+    Calibrate(CalibrateArgs),
     /// Train the eye filters from an annotated data set (Caltech Web Faces layout).
     Train(TrainArgs),
     /// Measure accuracy on annotated faces sheared synthetically.
     Eval(EvalArgs),
+    /// Render a rolling-shutter clip (a moving view over photos, with motion blur) and its truth.
+    Simulate(crate::simulate::SimulateArgs),
 }
 
 /// Models and limits shared by the commands that look at faces.
@@ -450,6 +454,70 @@ pub enum EvalCommand {
     Nostrils(EvalNostrilsArgs),
     /// Rank-1 recognition on undistorted, sheared and corrected probes (the paper's Table I).
     Recognition(EvalRecognitionArgs),
+    /// Video on simulated rolling-shutter clips of development faces: k per frame, residual
+    /// row offsets and the readout fraction found, against the simulator's truth.
+    Video(EvalVideoArgs),
+}
+
+/// `unshear eval video`.
+#[derive(Debug, Args)]
+pub struct EvalVideoArgs {
+    /// Data-set folder (Caltech 10k Web Faces layout): the scenes' photos.
+    #[arg(
+        long,
+        value_name = "DIR",
+        default_value = "../shared/data/caltech-webfaces"
+    )]
+    pub data: PathBuf,
+    /// Readout fractions to simulate, comma-separated.
+    #[arg(long, value_name = "RHO,...", value_delimiter = ',', default_values_t = [0.5, 0.8, 1.0])]
+    pub rho: Vec<f64>,
+    /// Motions to simulate, comma-separated: constant, pause, accelerate, shaky, walk.
+    #[arg(
+        long,
+        value_name = "MOTION,...",
+        value_delimiter = ',',
+        default_value = "constant,pause,accelerate,shaky"
+    )]
+    pub motion: Vec<String>,
+    /// Peak shear at the middle row (each clip's peak speed is K * H / rho px per frame).
+    #[arg(long, value_name = "K", default_value_t = 0.3)]
+    pub peak_k: f64,
+    /// Exposure in milliseconds (motion blur of speed x exposure).
+    #[arg(long, value_name = "MS", default_value_t = 4.0)]
+    pub exposure_ms: f64,
+    /// Clips per (motion, readout) setting, each over other development faces.
+    #[arg(long, value_name = "N", default_value_t = 2)]
+    pub clips: usize,
+    /// Photos joined into each clip's panorama.
+    #[arg(long, value_name = "N", default_value_t = 6)]
+    pub faces_per_clip: usize,
+    /// Frames per clip.
+    #[arg(long, value_name = "N", default_value_t = 90)]
+    pub frames: u32,
+    /// Frames at the start of each clip not scored.
+    #[arg(long, value_name = "N", default_value_t = 30)]
+    pub skip: usize,
+    /// Frame width, pixels.
+    #[arg(long, value_name = "PX", default_value_t = 1280)]
+    pub width: u32,
+    /// Frame height, pixels.
+    #[arg(long, value_name = "PX", default_value_t = 720)]
+    pub height: u32,
+    /// Frames per second.
+    #[arg(long, value_name = "FPS", default_value_t = 30.0)]
+    pub fps: f64,
+    /// Sensor noise, grey levels.
+    #[arg(long, value_name = "SIGMA", default_value_t = 2.0)]
+    pub noise: f64,
+    /// Seed of the face choice, the noise and the shake.
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    pub seed: u64,
+    /// Also write one JSON line per clip and mode to this file.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+    #[command(flatten)]
+    pub model: ModelArgs,
 }
 
 /// `unshear eval shear`.
@@ -691,8 +759,88 @@ pub struct VideoArgs {
     /// Replace existing output files (inputs are never overwritten).
     #[arg(long)]
     pub force: bool,
+    /// The camera's readout fraction: its sensor's readout time over the frame interval, in
+    /// (0, 1.2] [default: calibrated on the clip from its faces].
+    ///
+    /// Each frame's shear is then the image motion measured between frames times the line
+    /// time, k = RHO * v / H. From a data sheet, or an earlier `unshear calibrate`.
+    #[arg(
+        help_heading = "Rolling-shutter model",
+        long,
+        value_name = "RHO",
+        value_parser = readout_fraction,
+        conflicts_with = "readout_ms"
+    )]
+    pub readout_fraction: Option<f64>,
+    /// The camera's readout time in milliseconds (the readout fraction is MS * fps / 1000).
+    #[arg(
+        help_heading = "Rolling-shutter model",
+        long,
+        value_name = "MS",
+        value_parser = positive_f64
+    )]
+    pub readout_ms: Option<f64>,
+    /// Take every frame's shear from the faces alone, not from the measured motion.
+    #[arg(help_heading = "Rolling-shutter model", long)]
+    pub no_motion: bool,
+    /// Also undo the vertical stretch of vertical motion (rows resampled).
+    #[arg(help_heading = "Rolling-shutter model", long)]
+    pub vertical: bool,
+    /// `image`: the whole frame (a panning camera); `face`: each face with its own k, from its
+    /// own motion once the readout is known (a subject moving in front of a still camera), the
+    /// rest untouched.
+    #[arg(help_heading = "Rolling-shutter model", long, value_enum, default_value_t = RegionArg::Image)]
+    pub region: RegionArg,
+    /// While the readout is being calibrated, hold back up to N frames (in memory) so that
+    /// they too are corrected from motion once it is known.
+    #[arg(
+        help_heading = "Rolling-shutter model",
+        long,
+        value_name = "N",
+        default_value_t = unshear::video::process::DEFAULT_CALIBRATION_WINDOW
+    )]
+    pub calibration_window: usize,
     #[command(flatten)]
     pub model: ModelArgs,
+}
+
+/// `unshear calibrate`.
+#[derive(Debug, Args)]
+pub struct CalibrateArgs {
+    /// Input: a video file (through ffmpeg), a y4m file, `-` (y4m on stdin), or a folder of
+    /// numbered frames.
+    #[arg(value_name = "CLIP", help_heading = "Arguments")]
+    pub input: PathBuf,
+    /// Print the result as one JSON object.
+    #[arg(long)]
+    pub json: bool,
+    /// Frame rate of a frame folder (y4m streams and video files carry their own).
+    #[arg(long, value_name = "FPS", default_value_t = 25.0)]
+    pub fps: f64,
+    /// The FFmpeg program (and the ffprobe beside it) [default: on PATH].
+    #[arg(long, value_name = "PATH")]
+    pub ffmpeg: Option<PathBuf>,
+    /// Longest wait on ffmpeg or ffprobe before it is stopped as stuck (0: no limit).
+    #[arg(long, value_name = "SECONDS", default_value_t = crate::ffmpeg::DEFAULT_TIMEOUT_SECS)]
+    pub ffmpeg_timeout: u64,
+    #[command(flatten)]
+    pub model: ModelArgs,
+}
+
+/// A readout fraction in (0, 1.2].
+fn readout_fraction(s: &str) -> Result<f64, String> {
+    let v: f64 = s.parse().map_err(|e| format!("{e}"))?;
+    unshear::video::readout::check_readout_fraction(v).map_err(|e| e.to_string())
+}
+
+/// A finite number above 0.
+fn positive_f64(s: &str) -> Result<f64, String> {
+    let v: f64 = s.parse().map_err(|e| format!("{e}"))?;
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(format!("{s} is not a positive number"))
+    }
 }
 
 /// `eval shear --faces`.

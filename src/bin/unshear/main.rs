@@ -10,6 +10,7 @@ mod ffmpeg;
 mod interrupt;
 mod models;
 mod report;
+mod simulate;
 mod video;
 
 use std::collections::hash_map::{Entry, HashMap};
@@ -22,7 +23,7 @@ use clap::Parser;
 
 use args::{
     Cli, Command, CorrectArgs, DistortArgs, EstimateArgs, EvalCommand, EvalFaces, EvalNostrilsArgs,
-    EvalRecognitionArgs, EvalShearArgs, TrainArgs,
+    EvalRecognitionArgs, EvalShearArgs, EvalVideoArgs, TrainArgs,
 };
 use batch::{collect_inputs, run_ordered, shard, Collected, Input, IMAGE_EXTENSIONS};
 use models::load_models;
@@ -43,11 +44,14 @@ fn main() -> ExitCode {
         Command::Correct(a) => correct(a),
         Command::Distort(a) => distort(a).map(|()| true),
         Command::Video(a) => video::video(a).map(|()| true),
+        Command::Calibrate(a) => video::calibrate(a),
+        Command::Simulate(a) => simulate::simulate(a).map(|()| true),
         Command::Train(a) => train(a).map(|()| true),
         Command::Eval(e) => match e.what {
             EvalCommand::Shear(a) => eval_shear(a).map(|()| true),
             EvalCommand::Nostrils(a) => eval_nostrils(a).map(|()| true),
             EvalCommand::Recognition(a) => eval_recognition(a).map(|()| true),
+            EvalCommand::Video(a) => eval_video(a).map(|()| true),
         },
     };
     if interrupt::requested() {
@@ -728,6 +732,86 @@ fn progress_bar(len: u64) -> indicatif::ProgressBar {
         bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
     }
     bar
+}
+
+fn eval_video(a: EvalVideoArgs) -> Result<()> {
+    use unshear::dev::dataset::{CaltechWebFaces, FaceDataset};
+    use unshear::dev::eval::video::{evaluate_video, MotionKind, VideoEvalOptions};
+    use unshear::dev::simulate::{development_faces, Scene, ScenePhoto};
+    let motions = a
+        .motion
+        .iter()
+        .map(|m| {
+            MotionKind::ALL
+                .into_iter()
+                .find(|k| k.name() == m.trim())
+                .unwrap_or_else(|| {
+                    usage_error(&format!(
+                        "--motion {m}: not one of constant, pause, accelerate, shaky, walk"
+                    ))
+                })
+        })
+        .collect();
+    if !(a.fps.is_finite() && a.fps > 0.0 && a.exposure_ms.is_finite() && a.exposure_ms >= 0.0) {
+        usage_error("--fps must be above 0 and --exposure-ms at least 0");
+    }
+    let options = VideoEvalOptions {
+        width: a.width,
+        height: a.height,
+        frames: a.frames,
+        fps: a.fps,
+        readout_fractions: a.rho.clone(),
+        motions,
+        peak_k: a.peak_k,
+        exposure: (a.exposure_ms / 1000.0 * a.fps).min(1.0),
+        noise: a.noise,
+        clips: a.clips,
+        skip: a.skip,
+        seed: a.seed,
+        ..VideoEvalOptions::default()
+    };
+    let unshear = load_models(&a.model, Config::video())?;
+    let annotated = CaltechWebFaces::new(&a.data)
+        .faces()
+        .with_context(|| format!("reading the data set in {}", a.data.display()))?;
+    let max_pixels = a.model.max_pixels;
+    let scene = |clip: usize| {
+        let faces = development_faces(
+            annotated.clone(),
+            a.height,
+            40.0,
+            clip * a.faces_per_clip,
+            a.faces_per_clip,
+            a.seed,
+        )?;
+        let photos = Scene::from_annotated(&faces, a.height, max_pixels)?;
+        // A stretch of wall without faces (1.5 frame widths, a seeded texture) after the
+        // photos, so some frames have no face in view.
+        let wall = Scene::textured(a.width * 3 / 2, a.height, a.seed + clip as u64);
+        Scene::from_images(
+            &[
+                ScenePhoto {
+                    image: image::DynamicImage::ImageRgb8(photos.image().clone()),
+                    faces: photos.faces().to_vec(),
+                },
+                ScenePhoto {
+                    image: image::DynamicImage::ImageRgb8(wall.image().clone()),
+                    faces: Vec::new(),
+                },
+            ],
+            a.height,
+        )
+    };
+    let total = options.motions.len() * options.readout_fractions.len() * options.clips;
+    let bar = progress_bar(total as u64);
+    let result = evaluate_video(&unshear, &options, scene, |_| bar.inc(1))?;
+    bar.finish_and_clear();
+    print!("{}", result.markdown());
+    if let Some(path) = &a.json {
+        std::fs::write(path, result.json_lines())
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
+    Ok(())
 }
 
 fn eval_nostrils(a: EvalNostrilsArgs) -> Result<()> {

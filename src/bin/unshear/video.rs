@@ -18,7 +18,7 @@ use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressState, ProgressStyle};
 use serde::Serialize;
 
-use crate::args::{ChromaArg, KSourceArg, VideoArgs};
+use crate::args::{CalibrateArgs, ChromaArg, KSourceArg, VideoArgs};
 use crate::ffmpeg::{PendingDecoder, PendingEncoder, TempOutput, Tools};
 use crate::models::load_models;
 
@@ -35,8 +35,16 @@ use unshear::video::tracker::TrackerParams;
 use unshear::video::y4m::{Y4mReader, Y4mWriter};
 use unshear::video::{
     run, Chroma, FrameResult, FrameSink, FrameSource, KSource, ProcessOptions, RunStats,
-    VideoFormat, VideoProcessor,
+    ShearSource, VideoFormat, VideoProcessor,
 };
+
+/// Two decimals: pixels per frame.
+fn r2(v: f64) -> f64 {
+    (v * 100.0).round() / 100.0
+}
+
+/// The most memory the frames held for the readout's calibration may take.
+const CALIBRATION_HOLD_BYTES: u64 = 512 << 20;
 
 /// Largest `--smoothing-lag`: the processor holds that many decoded frames in memory.
 const MAX_SMOOTHING_LAG: usize = 250;
@@ -47,7 +55,22 @@ struct JsonFrame {
     frame: u64,
     k_raw: Option<f64>,
     k: f64,
-    faces: Vec<JsonFace>,
+    k_source: ShearSource,
+    readout_fraction: Option<f64>,
+    velocity: Option<[f64; 2]>,
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    faces_disagree: bool,
+    faces: Vec<JsonVideoFace>,
+}
+
+/// One face of a frame, as printed by `--json`: the stills' fields and its track and motion.
+#[derive(Debug, Serialize)]
+struct JsonVideoFace {
+    #[serde(flatten)]
+    face: JsonFace,
+    track: u64,
+    velocity: Option<[f64; 2]>,
+    k_motion: Option<f64>,
 }
 
 fn json_line(r: &FrameResult) -> String {
@@ -55,7 +78,26 @@ fn json_line(r: &FrameResult) -> String {
         frame: r.index,
         k_raw: r.k_raw.map(r4),
         k: r4(r.k),
-        faces: r.faces.iter().map(face).collect(),
+        k_source: r.k_source,
+        readout_fraction: r.readout_fraction.map(r4),
+        velocity: r.velocity.map(|[x, y]| [r2(x), r2(y)]),
+        faces_disagree: r.faces_disagree,
+        faces: r
+            .faces
+            .iter()
+            .enumerate()
+            .map(|(i, f)| JsonVideoFace {
+                face: face(f),
+                track: r.tracks.get(i).copied().unwrap_or_default(),
+                velocity: r
+                    .face_velocities
+                    .get(i)
+                    .copied()
+                    .flatten()
+                    .map(|[x, y]| [r2(x), r2(y)]),
+                k_motion: r.face_k_motion.get(i).copied().flatten().map(r4),
+            })
+            .collect(),
     };
     // Plain structs with finite or null numbers: serialisation cannot fail.
     serde_json::to_string(&line).unwrap_or_default()
@@ -300,6 +342,91 @@ fn y4m_sink<W: Write + Send>(
 
 /// `unshear video`.
 pub fn video(a: VideoArgs) -> Result<()> {
+    video_or_calibrate(a, None).map(|_| ())
+}
+
+/// `unshear calibrate`: the clip analysed as `unshear video --no-correct` would, then the
+/// readout fraction fitted over every face reading printed. `Ok(false)` when it could not be
+/// found (exit code 1).
+pub fn calibrate(c: CalibrateArgs) -> Result<bool> {
+    use clap::{Args as _, FromArgMatches as _};
+    let matches = VideoArgs::augment_args(clap::Command::new("video"))
+        .try_get_matches_from(["video", "-"])
+        .context("default video settings")?;
+    let mut a = VideoArgs::from_arg_matches(&matches).context("default video settings")?;
+    a.input = c.input;
+    a.fps = c.fps;
+    a.ffmpeg = c.ffmpeg;
+    a.ffmpeg_timeout = c.ffmpeg_timeout;
+    a.model = c.model;
+    a.no_correct = true;
+    a.calibration_window = 0;
+    video_or_calibrate(a, Some(c.json))
+}
+
+/// Prints what `unshear calibrate` found; false when the readout could not be found.
+fn print_calibration(stats: &RunStats, fps: f64, json: bool) -> bool {
+    let c = stats.calibration;
+    // A fit whose uncertainty is half its value or more says nothing: the faces hardly moved.
+    let found = c.filter(|c| {
+        c.readout_fraction > 0.0
+            && c.readout_fraction <= unshear::video::readout::MAX_READOUT_FRACTION
+            && c.uncertainty < 0.5 * c.readout_fraction
+    });
+    let reason = match (c, found) {
+        (_, Some(_)) => None,
+        (None, _) => Some(
+            "no face was seen moving (a still camera and still faces, or no face): the \
+             readout cannot be found from this clip",
+        ),
+        (Some(c), None) if c.uncertainty >= 0.5 * c.readout_fraction.abs() => Some(
+            "the faces hardly moved: the readout cannot be found from this clip; try one \
+             with a pan",
+        ),
+        (Some(_), None) => Some(
+            "the faces' shear does not follow their motion as a rolling shutter's would (a \
+             readout fraction outside (0, 1.2]): the readout cannot be found from this clip",
+        ),
+    };
+    if json {
+        let value = serde_json::json!({
+            "readout_fraction": found.map(|c| r4(c.readout_fraction)),
+            "readout_ms": found.map(|c| r2(c.readout_ms(fps))),
+            "fps": fps,
+            "uncertainty": found.map(|c| r4(c.uncertainty)),
+            "frames_used": found.map_or(0, |c| c.frames),
+            "readings": found.map_or(0, |c| c.samples),
+            "tracks": found.map_or(0, |c| c.tracks),
+            "frames": stats.frames,
+            "reason": reason,
+        });
+        println!("{value}");
+    }
+    match (found, reason) {
+        (Some(c), _) => {
+            if !json {
+                println!(
+                    "readout fraction {:.3} +- {:.3} ({:.2} ms at {fps:.3} fps), from {} face \
+                     readings in {} frames ({} faces)",
+                    c.readout_fraction,
+                    c.uncertainty,
+                    c.readout_ms(fps),
+                    c.samples,
+                    c.frames,
+                    c.tracks
+                );
+            }
+            true
+        }
+        (None, reason) => {
+            eprintln!("unshear calibrate: {}", reason.unwrap_or("no result"));
+            false
+        }
+    }
+}
+
+/// `unshear video`, or with `calibrate` (`Some(json)`) `unshear calibrate`'s analysis.
+fn video_or_calibrate(a: VideoArgs, calibrate: Option<bool>) -> Result<bool> {
     let json_to_stdout = a.json.as_deref().is_some_and(is_stdio);
     let y4m_to_stdout = a.output.as_deref().is_some_and(is_stdio);
     if json_to_stdout && y4m_to_stdout {
@@ -392,6 +519,24 @@ pub fn video(a: VideoArgs) -> Result<()> {
         container,
     } = input;
     let fps = format.fps();
+    let readout_fraction = match (a.readout_fraction, a.readout_ms) {
+        (Some(rho), _) => Some(rho),
+        (None, Some(ms)) => {
+            let rho = ms * fps / 1000.0;
+            if unshear::video::readout::check_readout_fraction(rho).is_err() {
+                usage_error(&format!(
+                    "--readout-ms {ms} at {fps:.3} frames/s is a readout fraction of {rho:.3}, \
+                     outside (0, 1.2]: a sensor reads its rows within the frame interval"
+                ));
+            }
+            Some(rho)
+        }
+        (None, None) => None,
+    };
+    let frame_bytes = format.frame_bytes().max(1);
+    let calibration_window = a
+        .calibration_window
+        .min(usize::try_from(CALIBRATION_HOLD_BYTES / frame_bytes).unwrap_or(usize::MAX));
     let options = ProcessOptions {
         tracker: TrackerParams {
             redetect_interval: a.redetect.unwrap_or(
@@ -414,6 +559,12 @@ pub fn video(a: VideoArgs) -> Result<()> {
         // turned upright (a phone held upright: read out along the shown columns).
         rotation: container.as_ref().map_or(0, |(_, p)| p.video.rotation),
         readout: unshear::Readout::Rows,
+        readout_fraction,
+        motion: !a.no_motion,
+        vertical: a.vertical,
+        region: a.region.into(),
+        calibration_window,
+        ..ProcessOptions::default()
     };
     let mut processor = VideoProcessor::new(&unshear, options);
     let write_options = WriteOptions {
@@ -550,15 +701,26 @@ pub fn video(a: VideoArgs) -> Result<()> {
         tmp.persist(&p, a.force)
             .with_context(|| format!("writing {}", p.display()))?;
     }
-    let fps = stats.frames as f64 / stats.seconds.max(1e-9);
+    if let Some(json) = calibrate {
+        return Ok(print_calibration(&stats, fps, json));
+    }
+    let speed = stats.frames as f64 / stats.seconds.max(1e-9);
     eprintln!(
-        "unshear video: {} frames in {:.2} s ({fps:.1} fps); faces in {frames_with_faces} \
+        "unshear video: {} frames in {:.2} s ({speed:.1} fps); faces in {frames_with_faces} \
          frames; {} full detections, {} tracked searches, {} estimates rejected by the filter",
         stats.frames,
         stats.seconds,
         stats.tracker.full_detections,
         stats.tracker.local_searches,
         stats.rejected
+    );
+    eprintln!(
+        "unshear video: {}",
+        describe_model(
+            &stats,
+            a.readout_fraction.is_some() || a.readout_ms.is_some(),
+            !a.no_motion
+        )
     );
     if let Some((o, plan)) = &written {
         eprintln!("unshear video: wrote {}: {}", o.display(), describe(plan));
@@ -584,7 +746,44 @@ pub fn video(a: VideoArgs) -> Result<()> {
             );
         }
     }
-    Ok(())
+    Ok(true)
+}
+
+/// The summary's line on the rolling-shutter model: where the frames' `k` came from and the
+/// readout fraction used, or why motion was not used.
+fn describe_model(stats: &RunStats, given: bool, motion: bool) -> String {
+    let s = stats.sources;
+    let counts = format!(
+        "k from motion in {} frames, from faces in {}, none in {}",
+        s.motion, s.faces, s.none
+    );
+    let disagree = if s.disagreements > 0 {
+        format!(
+            "; in {} motion frames the faces disagreed with the motion beyond their noise",
+            s.disagreements
+        )
+    } else {
+        String::new()
+    };
+    let readout = match (stats.readout_fraction, stats.calibration) {
+        _ if !motion => "the faces alone (--no-motion)".to_string(),
+        (Some(rho), _) if given => format!("readout fraction {rho:.3} (given)"),
+        (Some(rho), Some(c)) => format!(
+            "readout fraction {rho:.3} calibrated from the faces ({:.3} +- {:.3} over the \
+             whole clip, {} readings)",
+            c.readout_fraction, c.uncertainty, c.samples
+        ),
+        (Some(rho), None) => format!("readout fraction {rho:.3}"),
+        (None, None) => "readout fraction not found: no face was seen moving, so k came \
+                         from the faces alone (give --readout-fraction to correct by motion)"
+            .to_string(),
+        (None, Some(c)) => format!(
+            "readout fraction not found to 3% ({:.3} +- {:.3} from {} readings): k came \
+             from the faces alone (give --readout-fraction to correct by motion)",
+            c.readout_fraction, c.uncertainty, c.samples
+        ),
+    };
+    format!("{readout}; {counts}{disagree}")
 }
 
 /// Where frames go.

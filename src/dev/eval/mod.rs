@@ -15,6 +15,7 @@ pub mod nostrils;
 pub mod plot;
 pub mod recognition;
 pub mod shear;
+pub mod video;
 
 pub use shear::{
     evaluate_shear, evaluate_shear_in_context, ShearEvalOptions, ShearEvalResult, ShearSample,
