@@ -653,9 +653,10 @@ impl<'a> VideoProcessor<'a> {
             .fit
             .map_or(0.8, |c| c.readout_fraction)
             .clamp(0.05, 1.2);
+        let params = self.options.calibration;
         let mut fit = None;
         for _ in 0..3 {
-            let mut calibrator = ReadoutCalibrator::new(self.options.calibration);
+            let mut calibrator = ReadoutCalibrator::new(params);
             for r in &self.readings {
                 calibrator.add(ShearSample {
                     track: r.track,
@@ -666,6 +667,11 @@ impl<'a> VideoProcessor<'a> {
                 });
             }
             fit = calibrator.solve();
+            if self.options.readout_fraction.is_none() {
+                if let Some(c) = fit.filter(|c| params.is_known(c)) {
+                    self.rho = Some(c.readout_fraction);
+                }
+            }
             match fit {
                 Some(c) if c.readout_fraction > 0.05 && c.readout_fraction <= 1.2 => {
                     let settled = (c.readout_fraction - rho).abs() < 1e-3;
@@ -675,9 +681,6 @@ impl<'a> VideoProcessor<'a> {
                     }
                 }
                 _ => break,
-            }
-            if self.options.readout_fraction.is_none() {
-                self.rho = calibrator.known().map(|c| c.readout_fraction).or(self.rho);
             }
         }
         self.fit = fit;

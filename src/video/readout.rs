@@ -368,6 +368,17 @@ pub struct CalibrationParams {
     pub min_samples: usize,
 }
 
+impl CalibrationParams {
+    /// Whether a fit is good enough to correct by: enough readings, `rho` inside `(0, 1.2]` and
+    /// known to [`Self::max_relative_uncertainty`].
+    pub fn is_known(&self, c: &Calibration) -> bool {
+        c.samples >= self.min_samples
+            && c.readout_fraction > 0.0
+            && c.readout_fraction <= MAX_READOUT_FRACTION
+            && c.uncertainty <= self.max_relative_uncertainty * c.readout_fraction
+    }
+}
+
 impl Default for CalibrationParams {
     fn default() -> Self {
         Self {
@@ -506,13 +517,7 @@ impl ReadoutCalibrator {
     /// The fit, when it is good enough to correct by: enough readings, `rho` inside
     /// `(0, 1.2]` and known to [`CalibrationParams::max_relative_uncertainty`].
     pub fn known(&self) -> Option<Calibration> {
-        let c = self.solve()?;
-        let p = self.params;
-        (c.samples >= p.min_samples
-            && c.readout_fraction > 0.0
-            && c.readout_fraction <= MAX_READOUT_FRACTION
-            && c.uncertainty <= p.max_relative_uncertainty * c.readout_fraction)
-            .then_some(c)
+        self.solve().filter(|c| self.params.is_known(c))
     }
 }
 
