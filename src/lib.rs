@@ -26,7 +26,7 @@
 //!
 //! ```text
 //! geometry, stats ─▶ imageio ─▶ warp ─▶ detect ─▶ filters ─▶ estimate ─▶ locate ─▶ config
-//!     ─▶ pipeline ─▶ video ─▶ dev (feature "dev") ─▶ the `unshear` binary
+//!     ─▶ pipeline ─▶ video ─▶ dev (feature "dev") ─▶ the `unshear` binary (crate `unshear-cli`)
 //! ```
 //!
 //! * [`imageio`]: read (EXIF orientation applied, size-limited) and write (atomic, never over an
@@ -43,8 +43,12 @@
 //!   estimate can be trusted.
 //! * [`video`]: y4m streams and frame folders, faces tracked between detections, `k` filtered
 //!   over time.
-//! * `dev` (feature `dev`): the data sets, filter training and the measurements of
-//!   `docs/accuracy.md`.
+//! * `dev` (feature `dev`): the data sets, filter training, the rolling-shutter simulator and the
+//!   measurements of `docs/accuracy.md`.
+//!
+//! The default features are empty. The command-line tool is another crate of the workspace
+//! (`unshear-cli`, in `cli/`): argument parsing, progress, Ctrl-C, the `ffmpeg` driver for video
+//! containers, and the `eval`, `train` and `simulate` commands on the `dev` feature.
 
 // Every public item is documented (`.ci/run` denies warnings).
 #![warn(missing_docs)]

@@ -1,11 +1,9 @@
 //! Invariants as property tests (proptest): distort-then-correct is the identity on the valid
 //! interior; the estimate does not change under translation or uniform scaling of the image and
 //! changes sign under a mirror. (That the `--json` line always parses is a property test in the
-//! binary, `src/bin/unshear/report.rs`, where the line is built.)
+//! command-line tool, `cli/src/report.rs`, where the line is built.)
 //!
 //! The estimate properties run the whole pipeline, so they draw few cases.
-
-mod common;
 
 use image::{imageops, DynamicImage, GrayImage, Luma};
 use proptest::prelude::*;
@@ -118,7 +116,8 @@ fn faces() -> Vec<GrayImage> {
     ]
     .iter()
     .map(|n| {
-        unshear::imageio::read_image(&common::fixture(n), unshear::imageio::DEFAULT_MAX_PIXELS)
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/faces");
+        unshear::imageio::read_image(&path.join(n), unshear::imageio::DEFAULT_MAX_PIXELS)
             .expect("fixture")
             .to_luma8()
     })

@@ -79,7 +79,7 @@ fn fail(what: &str, e: impl std::fmt::Display) -> ! {
 /// Writes the generated 4000x3000 JPEG into `dir`.
 fn make_photo(dir: &Path) -> PathBuf {
     let face = concat!(
-        env!("CARGO_MANIFEST_DIR"),
+        concat!(env!("CARGO_MANIFEST_DIR"), "/.."),
         "/tests/fixtures/faces/subject01.normal.jpeg"
     );
     let face = image::open(face).unwrap_or_else(|e| fail("fixture", e));

@@ -1,6 +1,7 @@
 //! Running the `ffmpeg` and `ffprobe` programs for `unshear video` on containers: finding them,
 //! the decoding child (a y4m pipe read as a [`FrameSource`]) and the encoding child (a y4m pipe
-//! written as a [`FrameSink`]), their error output, and ending them.
+//! written as a [`FrameSink`]), their error output, and ending them. Their command lines and
+//! the reading of `ffprobe`'s answer are in [`plan`], which starts no process.
 //!
 //! Every child runs in a process group of its own, so a Ctrl-C at the terminal reaches only
 //! `unshear`, which then ends the children itself ([`abandon`], called by the signal handler)
@@ -8,6 +9,8 @@
 //! (an error elsewhere) are killed and reaped. A child that keeps `unshear` waiting (for a
 //! frame, for room in its pipe, for its end) longer than `--ffmpeg-timeout` is taken as stuck
 //! and killed by a watchdog thread, so that an unattended batch fails instead of hanging.
+
+pub mod plan;
 
 use std::ffi::{OsStr, OsString};
 use std::io::{BufReader, BufWriter, Read};
@@ -19,7 +22,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
-use unshear::video::ffmpeg::{Capabilities, Probe};
+use plan::{Capabilities, Probe};
 use unshear::video::y4m::{Y4mReader, Y4mWriter};
 use unshear::video::{FrameSink, FrameSource, VideoFrame};
 
@@ -118,7 +121,7 @@ impl Tools {
     /// The probe of `input`.
     pub fn probe(&self, input: &Path) -> Result<Probe> {
         let what = format!("probing {}", input.display());
-        let args = unshear::video::ffmpeg::probe_args(input);
+        let args = plan::probe_args(input);
         let (mut child, status, stdout) = self.output(&self.ffprobe, &args, &what)?;
         if !status.success() {
             bail!(
@@ -542,7 +545,7 @@ pub struct PendingDecoder {
 }
 
 impl PendingDecoder {
-    /// Starts `ffmpeg` with `args` (from [`unshear::video::ffmpeg::decode_args`]) on `input`;
+    /// Starts `ffmpeg` with `args` (from [`plan::decode_args`]) on `input`;
     /// `indexed`: the frame count of the container's index, when it has one.
     pub fn spawn(
         tools: &Tools,
@@ -660,7 +663,7 @@ impl FrameSource for Decoder {
 pub struct Encoder {
     writer: Option<Y4mWriter<BufWriter<ChildStdin>>>,
     child: ChildProcess,
-    /// The size frames are padded to (see [`unshear::video::ffmpeg::even_size`]).
+    /// The size frames are padded to (see [`plan::even_size`]).
     pad: Option<(u32, u32)>,
 }
 
@@ -670,7 +673,7 @@ fn pad_to<T: unshear::video::YuvSample>(
     pad: Option<(u32, u32)>,
 ) {
     if let Some((w, h)) = pad {
-        unshear::video::ffmpeg::pad_luma(frame, w, h);
+        plan::pad_luma(frame, w, h);
     }
 }
 
@@ -681,7 +684,7 @@ pub struct PendingEncoder {
 }
 
 impl PendingEncoder {
-    /// Starts `ffmpeg` with `args` (from [`unshear::video::ffmpeg::EncodePlan`]) writing
+    /// Starts `ffmpeg` with `args` (from [`plan::EncodePlan`]) writing
     /// `output` (named in messages).
     pub fn spawn(tools: &Tools, args: &[OsString], output: &Path) -> Result<Self> {
         let what = format!("encoding {}", output.display());
@@ -706,7 +709,7 @@ impl PendingEncoder {
             pad,
         };
         let header = match pad {
-            Some((w, h)) => unshear::video::ffmpeg::resize_header(header, w, h),
+            Some((w, h)) => plan::resize_header(header, w, h),
             None => header.to_vec(),
         };
         match Y4mWriter::with_header(BufWriter::with_capacity(1 << 20, self.stdin), &header) {

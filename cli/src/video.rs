@@ -22,13 +22,13 @@ use crate::args::{CalibrateArgs, ChromaArg, KSourceArg, VideoArgs};
 use crate::ffmpeg::{PendingDecoder, PendingEncoder, TempOutput, Tools};
 use crate::models::load_models;
 
-use crate::report::{face, r4, JsonFace};
-use crate::{create_parent, interrupt, output_key, usage_error};
-use unshear::imageio::WriteOptions;
-use unshear::video::ffmpeg::{
+use crate::ffmpeg::plan::{
     decode_args, even_size, y4m_target, Capabilities, EncodePlan, EncodeSettings, Probe,
     StreamAction, Timing,
 };
+use crate::report::{face, r4, JsonFace};
+use crate::{create_parent, interrupt, output_key, usage_error};
+use unshear::imageio::WriteOptions;
 use unshear::video::frames::{frame_gaps, list_frames, FrameFolderReader, FrameFolderWriter};
 use unshear::video::temporal::FilterParams;
 use unshear::video::tracker::TrackerParams;
@@ -950,7 +950,7 @@ fn describe(plan: &EncodePlan) -> String {
         video.push_str(&format!(" preset {p}"));
     }
     let mut parts = vec![video];
-    let count = |v: &[(unshear::video::ffmpeg::Stream, StreamAction)], kind: &str| {
+    let count = |v: &[(crate::ffmpeg::plan::Stream, StreamAction)], kind: &str| {
         let copied = v.iter().filter(|(_, x)| *x == StreamAction::Copy).count();
         let converted: Vec<String> = v
             .iter()

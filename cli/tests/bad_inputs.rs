@@ -9,7 +9,8 @@ use std::path::{Path, PathBuf};
 use assert_cmd::Command;
 
 fn fixture() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/faces/subject01.normal.jpeg")
+    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+        .join("tests/fixtures/faces/subject01.normal.jpeg")
 }
 
 /// Runs `estimate --json` on `bad` followed by a good face; checks the contract and returns the

@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use assert_cmd::Command;
 
 fn fixture(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
         .join("tests/fixtures/faces")
         .join(name)
 }
@@ -509,7 +509,8 @@ fn filter_type_selects_a_builtin_set() {
 #[test]
 fn filter_file_of_unknown_type_is_refused() {
     let dir = tempfile::tempdir().expect("temp dir");
-    let committed = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("models/eye_filters_mosse.bin");
+    let committed = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+        .join("models/eye_filters_mosse.bin");
     let mut bytes = std::fs::read(committed).expect("committed filters");
     bytes[12..16].copy_from_slice(&9u32.to_le_bytes());
     // Re-seal with the FNV-1a checksum so that only the type is wrong.

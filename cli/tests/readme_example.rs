@@ -13,7 +13,7 @@ const TOLERANCE: f64 = 2e-4;
 
 /// The example line (the one JSON object for `face-k0.30.png`) in `doc`.
 fn documented(doc: &str) -> Value {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(doc);
+    let path = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/..")).join(doc);
     let text = std::fs::read_to_string(&path).expect("document readable");
     let line = text
         .lines()
@@ -51,7 +51,7 @@ fn differ(a: &Value, b: &Value, at: &str) -> Option<String> {
 fn the_documented_json_is_what_the_example_gives() {
     let out = Command::cargo_bin("unshear")
         .expect("binary built")
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
         .args(["estimate", "assets/example/face-k0.30.png", "--json"])
         .output()
         .expect("runs");

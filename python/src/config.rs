@@ -379,7 +379,7 @@ pub enum Use {
 
 /// The library's `Config` for `cfg`, on top of `Config::default()` (stills) or
 /// `Config::video()`, exactly as the CLI makes it from the same flags (`config_from` in
-/// `src/bin/unshear/models.rs`).
+/// `cli/src/models.rs`).
 pub fn to_config(cfg: &PyConfig, use_: Use) -> Config {
     let base = match use_ {
         Use::Stills => Config::default(),

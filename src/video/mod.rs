@@ -26,9 +26,9 @@
 //! * [`process`]: all of the above per frame ([`VideoProcessor`], which holds frames back
 //!   for the smoother's lag or the readout's calibration and flushes them at the end) and the
 //!   threaded read → process → write loop ([`run`]).
-//! * [`ffmpeg`]: what the `ffmpeg` and `ffprobe` programs are asked to do for containers (MP4,
-//!   MOV, MKV, WebM): their command lines and the parsing of `ffprobe`'s JSON. The library
-//!   starts no process; the `unshear video` command runs them.
+//!
+//! Containers (MP4, MOV, MKV, WebM) go through the `ffmpeg` and `ffprobe` programs as y4m pipes;
+//! the command-line tool (the `unshear-cli` crate) runs them, and the library starts no process.
 //!
 //! # Formats
 //!
@@ -59,7 +59,6 @@
 //! source row `s` becomes chroma row `(s - o) / vs`.
 
 pub mod color;
-pub mod ffmpeg;
 pub mod frames;
 pub mod motion;
 pub mod process;

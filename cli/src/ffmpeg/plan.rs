@@ -1,6 +1,5 @@
 //! Containers (MP4, MOV, MKV, WebM...) through the `ffmpeg` and `ffprobe` programs: what they
-//! are asked to do, and what `ffprobe` answers. Nothing here starts a process (the `unshear
-//! video` command does), so the library keeps needing no system library.
+//! are asked to do, and what `ffprobe` answers. Nothing here starts a process ([`super`] does).
 //!
 //! * **Probe**: [`probe_args`] asks `ffprobe` for JSON about the input's streams; [`Probe::parse`]
 //!   reads the video stream (size, pixel format, frame count and rate, rotation, colour tags)
@@ -26,7 +25,7 @@ use std::path::Path;
 
 use serde::Deserialize;
 
-use crate::{Error, Result};
+use unshear::{Error, Result};
 
 fn video_err(msg: impl Into<String>) -> Error {
     Error::Video(msg.into())
@@ -667,7 +666,7 @@ pub fn even_size(
     encoder: Option<&str>,
     width: u32,
     height: u32,
-    chroma: crate::video::Chroma,
+    chroma: unshear::video::Chroma,
 ) -> Option<(u32, u32)> {
     if encoder.is_some_and(|e| ANY_SIZE_ENCODERS.contains(&e)) {
         return None;
@@ -680,8 +679,8 @@ pub fn even_size(
 
 /// `frame` with its luma plane grown to `width` x `height` by repeating its last column and
 /// row (see [`even_size`]); the chroma planes are kept as they are.
-pub fn pad_luma<T: crate::video::YuvSample>(
-    frame: &mut crate::video::YuvFrame<T>,
+pub fn pad_luma<T: unshear::video::YuvSample>(
+    frame: &mut unshear::video::YuvFrame<T>,
     width: u32,
     height: u32,
 ) {
@@ -690,7 +689,7 @@ pub fn pad_luma<T: crate::video::YuvSample>(
         return;
     }
     let y = &frame.y;
-    let padded = crate::video::Plane::from_fn(width, height, |x, r| {
+    let padded = unshear::video::Plane::from_fn(width, height, |x, r| {
         *y.get_pixel(x.min(w - 1), r.min(h - 1))
     });
     frame.y = padded;
@@ -1054,11 +1053,6 @@ fn format_number(v: f64) -> String {
     }
 }
 
-/// The first line of `ffmpeg -version`'s output, for messages (`ffmpeg version 5.1.6-0+deb12u1`).
-pub fn version_line(output: &str) -> &str {
-    output.lines().next().unwrap_or("").trim()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1364,7 +1358,7 @@ mod tests {
 
     #[test]
     fn odd_sizes_are_padded_to_even_for_subsampling_encoders() {
-        use crate::video::{Chroma, Plane, VideoFormat, YuvFrame};
+        use unshear::video::{Chroma, Plane, VideoFormat, YuvFrame};
         let e = |enc, w, h, c| even_size(enc, w, h, c);
         assert_eq!(
             e(Some("libx264"), 641, 361, Chroma::Yuv420),

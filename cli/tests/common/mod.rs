@@ -34,7 +34,7 @@ pub fn json_lines(stdout: &[u8]) -> Vec<serde_json::Value> {
 /// A committed fixture face (tests/fixtures/faces, see SOURCE.md there).
 #[allow(dead_code)] // Not every test file uses every helper.
 pub fn fixture(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
         .join("tests/fixtures/faces")
         .join(name)
 }
@@ -42,7 +42,7 @@ pub fn fixture(name: &str) -> PathBuf {
 /// `../shared/data/<rel>` if it exists; otherwise notes the skip and returns `None`.
 #[allow(dead_code)]
 pub fn shared_data(rel: &str) -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+    let p = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
         .join("../shared/data")
         .join(rel);
     if p.exists() {
