@@ -29,7 +29,7 @@
 //! `exp(-1 / decay_frames)` per frame, so a scene that stays faceless ends up uncorrected; the
 //! first estimate after such a gap restarts the filter.
 //!
-//! The defaults were tuned on the synthetic panning clip of `tests/video.rs` (estimates with a
+//! The defaults were tuned on the synthetic panning clip of `cli/tests/video.rs` (estimates with a
 //! spread of a few hundredths, a pan that ramps, pauses and reverses over about a second).
 //!
 //! # Smoothing (fixed lag)
@@ -59,7 +59,7 @@
 //! **Choice of `L`.** With the default filter the steady-state backward gain `C` has
 //! eigenvalues of modulus 0.61, so frame `t + j` moves the smoothed `k` of frame `t` by a
 //! share that falls as 0.61^j: about 5 % is left at `j = 6`, and a longer lag buys almost
-//! nothing. On the clip of `tests/video.rs`, with UMACE filters, the worst error after the
+//! nothing. On the clip of `cli/tests/video.rs`, with UMACE filters, the worst error after the
 //! first 3 frames is 0.0335 with the causal filter, 0.0283 / 0.0260 / 0.0257 / 0.0243 / 0.0242 with `L` = 1 / 2 / 4 / 5
 //! / 6 and 0.0245 from `L` = 8 to 24 (rms 0.0147 causal, 0.0133 at `L` = 6, 0.0132 beyond).
 //! With the MOSSE filters (the default since) the per-frame estimates are steadier: 0.0251
