@@ -89,10 +89,11 @@ pub struct ModelArgs {
         help_heading = "Correction",
         hide_short_help = true,
         long,
+        alias = "refine",
         value_name = "N",
         default_value_t = 0
     )]
-    pub refine: usize,
+    pub refinements: usize,
     /// How located points become k: `equation5` (the paper), `shear-roll` (eye line and nose
     /// axis, roll solved exactly), `shear-roll-yaw` (also the mouth axis, yaw extrapolated out)
     /// [default: shear-roll-yaw for stills, equation5 for `video`, where its lower per-frame
