@@ -67,7 +67,7 @@ pub struct ModelArgs {
     pub filter_type: Option<FilterTypeArg>,
     /// What locates the eyes, nose and mouth: `network` (the built-in landmark network, which
     /// also reads the shear itself) or `filters` (the paper's correlation filters throughout,
-    /// with --filter-type, --shear-model and --refine) [default: network].
+    /// with --filter-type, --shear-model and --refinements) [default: network].
     #[arg(help_heading = "Models", long, value_enum, value_name = "LOCATOR")]
     pub locator: Option<LocatorArg>,
     /// Landmark network file written by `scripts/train_landmarks.py` [default: built-in].
