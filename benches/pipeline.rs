@@ -51,7 +51,7 @@ fn bench(c: &mut Criterion) {
     };
     let img = fixture();
     let gray = Unshear::gray(&img);
-    let face = unshear.detector().detect(&gray)[0];
+    let face = unshear.cascade_detector().detect(&gray)[0];
     c.bench_function("estimate one face (after detection)", |b| {
         b.iter(|| unshear.estimate_face(&gray, face, FaceStart::default()))
     });
@@ -157,10 +157,10 @@ fn bench(c: &mut Criterion) {
     let mut group = c.benchmark_group("detect 1920x1080");
     group.sample_size(10);
     group.bench_function("1 thread", |b| {
-        single_thread(|| b.iter(|| unshear.detector().detect(&frame)))
+        single_thread(|| b.iter(|| unshear.cascade_detector().detect(&frame)))
     });
     group.bench_function("all threads", |b| {
-        b.iter(|| unshear.detector().detect(&frame))
+        b.iter(|| unshear.cascade_detector().detect(&frame))
     });
     // `--min-face 60`: the smallest scales, where most windows are, skipped.
     let min_face_60 = unshear::detect::FaceDetector::new(

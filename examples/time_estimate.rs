@@ -49,7 +49,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut correct = Vec::with_capacity(runs * CORRECT_RUNS);
     for _ in 0..runs * CORRECT_RUNS {
         let t = Instant::now();
-        let fixed = unshear.correct(&img, &report, &options)?;
+        let fixed = Unshear::correct(&img, &report, &options)?;
         correct.push(t.elapsed().as_secs_f64() * 1e3);
         std::hint::black_box(fixed);
     }

@@ -8,15 +8,15 @@
 //! row (equation 6).
 //!
 //! ```no_run
-//! use unshear::{imageio, Config, CorrectOptions, Unshear};
+//! use unshear::{Config, CorrectOptions, FileOptions, Unshear};
 //!
 //! # fn main() -> unshear::Result<()> {
 //! let unshear = Unshear::new(Config::default())?;
-//! let img = imageio::read_image("photo.jpg".as_ref(), imageio::DEFAULT_MAX_PIXELS)?;
-//! let report = unshear.estimate(&img);
+//! // Read with its EXIF orientation applied; written with its colour profile and EXIF.
+//! let report = unshear.estimate_file("photo.jpg")?;
 //! if report.k.is_some() {
-//!     let fixed = unshear.correct(&img, &report, &CorrectOptions::default())?;
-//!     fixed.save("fixed.png").ok();
+//!     let (options, file) = (CorrectOptions::default(), FileOptions::default());
+//!     unshear.correct_file("photo.jpg", "fixed.jpg", &options, &file)?;
 //! }
 //! # Ok(())
 //! # }
@@ -81,7 +81,8 @@ pub use config::{Config, Detector, FaceSearch, Locator};
 pub use error::{Error, Result};
 pub use geometry::{Point, Rect, Shear};
 pub use pipeline::{
-    CorrectOptions, FaceReport, FaceStart, ImageReport, Models, Readout, Refusal, Region, Unshear,
+    CorrectOptions, FaceReport, FaceStart, FileOptions, ImageReport, Models, Readout, Refusal,
+    Region, Unshear,
 };
 
 /// The README's Rust example, compiled as a doctest so it cannot go stale.

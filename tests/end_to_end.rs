@@ -89,9 +89,7 @@ fn correcting_removes_the_shear() {
         let distorted = sheared(&img, 0.3);
         let report = unshear.estimate(&distorted);
         let estimate = report.k.expect("estimate on the distorted image");
-        let fixed = unshear
-            .correct(&distorted, &report, &Default::default())
-            .expect("correct");
+        let fixed = Unshear::correct(&distorted, &report, &Default::default()).expect("correct");
         assert_eq!(
             (fixed.width(), fixed.height()),
             (distorted.width(), distorted.height())

@@ -125,8 +125,7 @@ fn measure_library(photo: &Path) {
         fail("estimate", "no face found in the generated photo")
     };
     let after_estimate = PEAK.load(Ordering::Relaxed) - base;
-    let fixed = unshear
-        .correct(&img, &report, &Default::default())
+    let fixed = unshear::Unshear::correct(&img, &report, &Default::default())
         .unwrap_or_else(|e| fail("correcting", e));
     drop(img);
     let out = photo.with_file_name("fixed.jpg");

@@ -67,7 +67,7 @@ pub struct ModelArgs {
     pub filter_type: Option<FilterTypeArg>,
     /// What locates the eyes, nose and mouth: `network` (the built-in landmark network, which
     /// also reads the shear itself) or `filters` (the paper's correlation filters throughout,
-    /// with --filter-type, --shear-model and --refine) [default: network].
+    /// with --filter-type, --shear-model and --refinements) [default: network].
     #[arg(help_heading = "Models", long, value_enum, value_name = "LOCATOR")]
     pub locator: Option<LocatorArg>,
     /// Landmark network file written by `scripts/train_landmarks.py` [default: built-in].
@@ -89,10 +89,11 @@ pub struct ModelArgs {
         help_heading = "Correction",
         hide_short_help = true,
         long,
+        alias = "refine",
         value_name = "N",
         default_value_t = 0
     )]
-    pub refine: usize,
+    pub refinements: usize,
     /// How located points become k: `equation5` (the paper), `shear-roll` (eye line and nose
     /// axis, roll solved exactly), `shear-roll-yaw` (also the mouth axis, yaw extrapolated out)
     /// [default: shear-roll-yaw for stills, equation5 for `video`, where its lower per-frame

@@ -457,7 +457,7 @@ fn correct_one(
     if !options.changes(&report) {
         return Ok(Corrected::NoFace(report));
     }
-    let fixed = unshear.correct(&img, &report, &options)?;
+    let fixed = Unshear::correct(&img, &report, &options)?;
     // The input is not needed any more: free it before encoding (peak memory, see README).
     drop(img);
     create_parent(&out)?;

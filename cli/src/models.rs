@@ -2,76 +2,56 @@
 //! models from the built-in ones or the files named.
 
 use anyhow::{Context, Result};
-use unshear::detect::{Cascade, DetectorParams, ProposalNet};
+use unshear::config::{Options, Search};
+use unshear::detect::{Cascade, ProposalNet};
 use unshear::filters::{EyeFilters, FilterType};
 use unshear::locate::network::LandmarkNet;
-use unshear::{Config, Detector, FaceSearch, Models, Unshear};
+use unshear::{Config, Models, Unshear};
 
-use crate::args::{LocatorArg, ModelArgs};
+use crate::args::ModelArgs;
 use crate::usage_error;
 
-/// `base` (the stills' default, or video's) with the flags of `m` applied.
-pub fn config_from(m: &ModelArgs, base: Config) -> Config {
-    let defaults = DetectorParams::default();
-    let min_face = m.min_face.unwrap_or(0);
-    // Flags of the Viola-Jones search choose it; so do the filters, which cannot judge the
-    // network detector's windows.
-    let viola_jones_flags = m.quick
-        || m.thorough
-        || m.no_shear_search
-        || m.shear_hypotheses.is_some()
-        || m.roll_hypotheses.is_some()
-        || m.fallback_cascade
-        || m.search_every_view
-        || m.locator == Some(LocatorArg::Filters);
-    let detector = match m.detector {
-        Some(d) => d.into(),
-        None if viola_jones_flags => Detector::ViolaJones,
-        None => base.detector,
+/// The user options ([`unshear::config::OPTIONS`]) the flags of `m` give: the search flags
+/// (`--thorough`, `--quick`, `--no-shear-search`) as `search`, `--no-roll-search` as no roll
+/// hypotheses, `--no-proposals` as `proposals` off.
+pub fn options_from(m: &ModelArgs) -> Options {
+    let mut o = Options::default();
+    o.detector = m.detector.map(Into::into);
+    o.locator = m.locator.map(Into::into);
+    o.search = if m.no_shear_search {
+        Some(Search::Single)
+    } else if m.thorough {
+        Some(Search::Thorough)
+    } else if m.quick {
+        Some(Search::Quick)
+    } else {
+        None
     };
-    let mut c = Config {
-        detector,
-        min_face: m.min_face.unwrap_or(base.min_face),
-        search: if m.thorough && !m.no_shear_search {
-            FaceSearch::Thorough
-        } else {
-            FaceSearch::Quick
-        },
-        min_confidence: m.min_confidence,
-        max_shear: m.max_shear,
-        refinements: m.refine,
-        proposals: !m.no_proposals,
-        search_every_view: m.search_every_view,
-        shear_hypotheses: m.shear_hypotheses.clone(),
-        roll_hypotheses: if m.no_roll_search {
-            Some(Vec::new())
-        } else {
-            m.roll_hypotheses.clone()
-        },
-        fallback_cascade: m.fallback_cascade && !m.no_shear_search,
-        filter_type: m.filter_type.map_or(base.filter_type, FilterType::from),
-        cascade: DetectorParams {
-            min_size: (min_face, min_face),
-            min_neighbors: m.min_neighbors.unwrap_or(defaults.min_neighbors),
-            scale_factor: m.scale_factor.unwrap_or(defaults.scale_factor),
-            ..defaults
-        },
-        ..base
+    o.min_confidence = Some(m.min_confidence);
+    o.max_shear = Some(m.max_shear);
+    o.max_crops = m.max_crops.map(usize::from);
+    o.refinements = Some(m.refinements);
+    o.shear_model = m.shear_model.map(Into::into);
+    o.filter_type = m.filter_type.map(FilterType::from);
+    o.min_face = m.min_face;
+    o.min_neighbors = m.min_neighbors;
+    o.scale_factor = m.scale_factor;
+    o.proposals = m.no_proposals.then_some(false);
+    o.fallback_cascade = m.fallback_cascade.then_some(true);
+    o.search_every_view = m.search_every_view.then_some(true);
+    o.shear_hypotheses = m.shear_hypotheses.clone();
+    o.roll_hypotheses = if m.no_roll_search {
+        Some(Vec::new())
+    } else {
+        m.roll_hypotheses.clone()
     };
-    if m.no_shear_search {
-        c.shear_hypotheses = Some(Vec::new());
-        c.roll_hypotheses = Some(Vec::new());
-    }
-    if let Some(locator) = m.locator {
-        c.locator = locator.into();
-    }
-    if let Some(model) = m.shear_model {
-        c.shear_model = model.into();
-    }
-    if let Some(crops) = m.max_crops {
-        c.network_budget.max_passes = usize::from(crops);
-    }
-    c
+    o
+}
+
+/// `base` (the stills' default, or video's) with the flags of `m` applied, by the library's
+/// one resolution of the options ([`Options::to_config`], as Python's keywords are).
+pub fn config_from(m: &ModelArgs, base: Config) -> unshear::Result<Config> {
+    options_from(m).to_config(base)
 }
 
 /// The corrector for `m` on top of `base`, and the thread pool sized by `--jobs`. A value out
@@ -83,10 +63,10 @@ pub fn load_models(m: &ModelArgs, base: Config) -> Result<Unshear> {
             .num_threads(usize::from(jobs))
             .build_global();
     }
-    let config = config_from(m, base);
-    if let Err(e) = config.validate() {
-        usage_error(&e.to_string());
-    }
+    let config = match config_from(m, base) {
+        Ok(config) => config,
+        Err(e) => usage_error(&e.to_string()),
+    };
     let cascade = match &m.cascade {
         Some(p) => {
             Cascade::from_file(p).with_context(|| format!("loading cascade {}", p.display()))?
@@ -121,4 +101,129 @@ pub fn load_models(m: &ModelArgs, base: Config) -> Result<Unshear> {
         detector,
     };
     Ok(Unshear::with_models(config, models)?)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::args::{Cli, Command};
+    use clap::{ArgAction, CommandFactory, Parser};
+    use unshear::config::{options, OptionKind};
+
+    /// Options the command line spells otherwise than `--name`, with the flags that set them.
+    const SPELLED_OTHERWISE: &[(&str, &[&str])] = &[(
+        "search",
+        // Three switches read better than `--search NAME` and are what the docs teach.
+        &["thorough", "quick", "no-shear-search"],
+    )];
+
+    /// Every library option has a flag of its kind on the face commands (a switch named
+    /// `--no-NAME` for one on by default), so a new `Config` option cannot go without one.
+    #[test]
+    fn every_option_has_a_flag_of_its_kind() {
+        let cli = Cli::command();
+        for command in ["estimate", "correct", "video"] {
+            let sub = cli.find_subcommand(command).expect("a face command");
+            let arg = |long: &str| {
+                sub.get_arguments()
+                    .find(|a| a.get_long() == Some(long))
+                    .unwrap_or_else(|| panic!("{command}: no --{long}"))
+            };
+            for o in options() {
+                let long = o.name.replace('_', "-");
+                if let Some((_, flags)) = SPELLED_OTHERWISE.iter().find(|(n, _)| *n == o.name) {
+                    for f in *flags {
+                        assert!(matches!(arg(f).get_action(), ArgAction::SetTrue));
+                    }
+                    continue;
+                }
+                match o.kind {
+                    OptionKind::Flag => {
+                        let long = if o.default == "true" {
+                            format!("no-{long}")
+                        } else {
+                            long
+                        };
+                        assert!(
+                            matches!(arg(&long).get_action(), ArgAction::SetTrue),
+                            "--{long} is a switch"
+                        );
+                    }
+                    OptionKind::Integer | OptionKind::Number => {
+                        let a = arg(&long);
+                        assert!(a.get_action().takes_values(), "--{long} takes a value");
+                        assert!(a.get_value_delimiter().is_none(), "--{long}: one value");
+                    }
+                    OptionKind::Numbers => {
+                        let a = arg(&long);
+                        assert!(a.get_action().takes_values(), "--{long} takes values");
+                        assert_eq!(a.get_value_delimiter(), Some(','), "--{long}");
+                    }
+                    OptionKind::Choice(names) => {
+                        let values: Vec<String> = arg(&long)
+                            .get_possible_values()
+                            .iter()
+                            .map(|v| v.get_name().to_string())
+                            .collect();
+                        assert_eq!(values, names, "--{long}'s values");
+                    }
+                }
+            }
+        }
+    }
+
+    fn model_args(flags: &[&str]) -> ModelArgs {
+        let line = ["unshear", "estimate", "in.jpg"].iter().chain(flags);
+        match Cli::try_parse_from(line)
+            .expect("a valid command line")
+            .command
+        {
+            Command::Estimate(e) => e.model,
+            _ => unreachable!("estimate"),
+        }
+    }
+
+    /// Every option given on the command line reaches the library's `Options`.
+    #[test]
+    fn every_flag_reaches_the_options() {
+        let m = model_args(&[
+            "--detector=viola-jones",
+            "--locator=filters",
+            "--quick",
+            "--min-confidence=0.3",
+            "--max-shear=0.3",
+            "--max-crops=3",
+            "--refinements=2",
+            "--shear-model=equation5",
+            "--filter-type=umace",
+            "--min-face=50",
+            "--min-neighbors=2",
+            "--scale-factor=1.2",
+            "--no-proposals",
+            "--fallback-cascade",
+            "--search-every-view",
+            "--shear-hypotheses=0.1,-0.1",
+            "--roll-hypotheses=10",
+        ]);
+        let o = options_from(&m);
+        assert!(!format!("{o:?}").contains("None"), "{o:?}");
+        let c = config_from(&m, Config::default()).expect("valid");
+        assert_eq!(c.max_shear, 0.3);
+        assert_eq!(c.refinements, 2);
+        assert_eq!(c.network_budget.max_passes, 3);
+        // The former spelling still works.
+        assert_eq!(model_args(&["--refine=4"]).refinements, 4);
+    }
+
+    /// The flags' defaults give the library's defaults for stills and video.
+    #[test]
+    fn no_flags_give_the_presets() {
+        let m = model_args(&[]);
+        for base in [Config::default(), Config::video()] {
+            let c = config_from(&m, base.clone()).expect("valid");
+            assert_eq!(c, Options::default().to_config(base).expect("valid"));
+        }
+        let single = config_from(&model_args(&["--no-shear-search"]), Config::default());
+        assert_eq!(single.expect("valid").shear_hypotheses, Some(Vec::new()));
+    }
 }

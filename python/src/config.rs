@@ -1,23 +1,15 @@
-//! The corrector's settings, as Python keyword arguments: parsed and checked here, turned into
-//! the library's `Config` by [`to_config`] (as the CLI turns its flags into one).
+//! The corrector's settings, as Python keyword arguments (the library's options,
+//! `unshear::config::OPTIONS`): parsed here, turned into the library's `Config` by its one
+//! resolution, `Options::to_config` (as the CLI's flags are).
 
 use pyo3::exceptions::{PyOverflowError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
-use unshear::detect::DetectorParams;
+use unshear::config::{Options, Search};
 use unshear::estimate::ShearModel;
 use unshear::filters::FilterType;
-use unshear::{Config, Detector, FaceSearch, Locator, Unshear};
-
-/// How hard faces are searched for (`search=`): the CLI's default, `--quick` and
-/// `--no-shear-search`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Search {
-    Thorough,
-    Quick,
-    Single,
-}
+use unshear::{Config, Detector, Locator, Unshear};
 
 /// Every setting of `unshear.Unshear(**config)`, with the CLI's defaults (`None`: the default
 /// of stills or of video, as the CLI leaves it).
@@ -30,6 +22,7 @@ pub struct PyConfig {
     /// `None`: `quick` (with Viola-Jones; the network detector has no views).
     pub search: Option<Search>,
     pub min_confidence: f64,
+    pub max_shear: f64,
     pub max_crops: Option<u16>,
     pub refinements: usize,
     pub shear_model: Option<ShearModel>,
@@ -54,6 +47,7 @@ impl Default for PyConfig {
             locator: c.locator,
             search: None,
             min_confidence: c.min_confidence,
+            max_shear: c.max_shear,
             max_crops: None,
             refinements: c.refinements,
             shear_model: None,
@@ -76,25 +70,10 @@ const MAX_CROPS: i128 = 64;
 pub const U32_MAX: i128 = u32::MAX as i128;
 pub const U64_MAX: i128 = u64::MAX as i128;
 
-/// The keyword names, in the order `Unshear.config` lists them.
-pub const KEYS: [&str; 16] = [
-    "detector",
-    "locator",
-    "search",
-    "min_confidence",
-    "max_crops",
-    "refinements",
-    "shear_model",
-    "filter_type",
-    "min_face",
-    "min_neighbors",
-    "scale_factor",
-    "proposals",
-    "fallback_cascade",
-    "search_every_view",
-    "shear_hypotheses",
-    "roll_hypotheses",
-];
+/// The keyword names, in the order `Unshear.config` lists them: the library's options.
+pub fn keys() -> impl Iterator<Item = &'static str> {
+    unshear::config::options().iter().map(|o| o.name)
+}
 
 fn choice<T: Copy>(key: &str, value: &Bound<'_, PyAny>, options: &[(&str, T)]) -> PyResult<T> {
     let text: String = value.extract().map_err(|_| {
@@ -265,6 +244,7 @@ impl PyConfig {
                 "locator" => c.locator = choice(&key, &value, &LOCATORS)?,
                 "search" => c.search = Some(choice(&key, &value, &SEARCHES)?),
                 "min_confidence" => c.min_confidence = real(&key, &value)?,
+                "max_shear" => c.max_shear = real(&key, &value)?,
                 "max_crops" => c.max_crops = Some(integer(&key, &value, 1, MAX_CROPS)?),
                 "refinements" => {
                     c.refinements =
@@ -283,62 +263,47 @@ impl PyConfig {
                 _ => {
                     return Err(PyTypeError::new_err(format!(
                         "{caller}() got an unexpected keyword argument '{key}' (settings: {})",
-                        KEYS.join(", ")
+                        keys().collect::<Vec<_>>().join(", ")
                     )))
                 }
             }
         }
-        c.validate()?;
+        // The values and their combinations are checked once, by the library.
+        c.options()
+            .to_config(Config::default())
+            .map_err(crate::to_pyerr)?;
         Ok(c)
     }
 
-    /// The checks the CLI makes of its flags before the library sees them (clap's conflicts; the
-    /// ranges were checked as the values were parsed); `Config::validate` checks the values
-    /// themselves when the corrector is built.
-    pub fn validate(&self) -> PyResult<()> {
-        let bad = |m: &str| Err(PyValueError::new_err(m.to_string()));
-        if self.detector == Some(Detector::Network) && self.search.is_some() {
-            return bad("search chooses the views of detector=\"viola-jones\"; the network detector has none");
-        }
-        if self.search == Some(Search::Single)
-            && (self.shear_hypotheses.is_some()
-                || self.roll_hypotheses.is_some()
-                || self.fallback_cascade
-                || self.search_every_view)
-        {
-            return bad(
-                "search=\"single\" is one detection pass: no shear_hypotheses, roll_hypotheses, \
-                 fallback_cascade or search_every_view",
-            );
-        }
-        if self.search_every_view && self.search != Some(Search::Quick) {
-            return bad(
-                "search_every_view goes with search=\"quick\" (the thorough search always \
-                 searches every view)",
-            );
-        }
-        Ok(())
+    /// The library's options these settings give.
+    pub fn options(&self) -> Options {
+        let mut o = Options::default();
+        o.detector = self.detector;
+        o.locator = Some(self.locator);
+        o.search = self.search;
+        o.min_confidence = Some(self.min_confidence);
+        o.max_shear = Some(self.max_shear);
+        o.max_crops = self.max_crops.map(usize::from);
+        o.refinements = Some(self.refinements);
+        o.shear_model = self.shear_model;
+        o.filter_type = Some(self.filter_type);
+        o.min_face = self.min_face;
+        o.min_neighbors = Some(self.min_neighbors);
+        o.scale_factor = Some(self.scale_factor);
+        o.proposals = Some(self.proposals);
+        o.fallback_cascade = Some(self.fallback_cascade);
+        o.search_every_view = Some(self.search_every_view);
+        o.shear_hypotheses = self.shear_hypotheses.clone();
+        o.roll_hypotheses = self.roll_hypotheses.clone();
+        o
     }
 
-    /// The detector these settings run: the one asked for, else Viola-Jones when a search or
-    /// the filters ask for it (as the CLI decides), else the network. With the filters it is
-    /// Viola-Jones even when the network is asked for: the library runs the network detector
-    /// only with the network locator, which judges its windows (`Detector::Network`).
+    /// The detector these settings run, as the library resolves it (Viola-Jones when a search
+    /// or the filters ask for it).
     pub fn resolved_detector(&self) -> Detector {
-        if self.locator == Locator::Filters {
-            return Detector::ViolaJones;
-        }
-        let viola_jones = self.search.is_some()
-            || self.locator == Locator::Filters
-            || self.shear_hypotheses.is_some()
-            || self.roll_hypotheses.is_some()
-            || self.fallback_cascade
-            || self.search_every_view;
-        match self.detector {
-            Some(d) => d,
-            None if viola_jones => Detector::ViolaJones,
-            None => Detector::Network,
-        }
+        self.options()
+            .to_config(Config::default())
+            .map_or(Detector::Network, |c| c.detector)
     }
 
     /// The settings as a dict of the keyword arguments (what `Unshear.config` returns).
@@ -348,6 +313,7 @@ impl PyConfig {
         d.set_item("locator", name_of(&LOCATORS, self.locator))?;
         d.set_item("search", self.search.map(|s| name_of(&SEARCHES, s)))?;
         d.set_item("min_confidence", self.min_confidence)?;
+        d.set_item("max_shear", self.max_shear)?;
         d.set_item("max_crops", self.max_crops)?;
         d.set_item("refinements", self.refinements)?;
         d.set_item(
@@ -378,52 +344,16 @@ pub enum Use {
 }
 
 /// The library's `Config` for `cfg`, on top of `Config::default()` (stills) or
-/// `Config::video()`, exactly as the CLI makes it from the same flags (`config_from` in
-/// `cli/src/models.rs`).
-pub fn to_config(cfg: &PyConfig, use_: Use) -> Config {
+/// `Config::video()`, by the library's one resolution of the options (as the CLI's flags).
+pub fn to_config(cfg: &PyConfig, use_: Use) -> unshear::Result<Config> {
     let base = match use_ {
         Use::Stills => Config::default(),
         Use::Video => Config::video(),
     };
-    let single = cfg.search == Some(Search::Single);
-    let mut c = Config {
-        detector: cfg.resolved_detector(),
-        min_face: cfg.min_face.unwrap_or(base.min_face),
-        locator: cfg.locator,
-        search: match cfg.search {
-            Some(Search::Thorough) => FaceSearch::Thorough,
-            _ => FaceSearch::Quick,
-        },
-        min_confidence: cfg.min_confidence,
-        refinements: cfg.refinements,
-        proposals: cfg.proposals,
-        search_every_view: cfg.search_every_view,
-        shear_hypotheses: cfg.shear_hypotheses.clone(),
-        roll_hypotheses: cfg.roll_hypotheses.clone(),
-        fallback_cascade: cfg.fallback_cascade && !single,
-        filter_type: cfg.filter_type,
-        cascade: DetectorParams {
-            min_size: (cfg.min_face.unwrap_or(0), cfg.min_face.unwrap_or(0)),
-            min_neighbors: cfg.min_neighbors,
-            scale_factor: cfg.scale_factor,
-            ..DetectorParams::default()
-        },
-        ..base
-    };
-    if single {
-        c.shear_hypotheses = Some(Vec::new());
-        c.roll_hypotheses = Some(Vec::new());
-    }
-    if let Some(model) = cfg.shear_model {
-        c.shear_model = model;
-    }
-    if let Some(crops) = cfg.max_crops {
-        c.network_budget.max_passes = usize::from(crops);
-    }
-    c
+    cfg.options().to_config(base)
 }
 
 /// The corrector for `cfg` with the built-in models (`Config::validate` refuses bad values).
 pub fn build(cfg: &PyConfig, use_: Use) -> unshear::Result<Unshear> {
-    Unshear::new(to_config(cfg, use_))
+    Unshear::new(to_config(cfg, use_)?)
 }

@@ -261,9 +261,7 @@ impl PyUnshear {
             if !options.changes(&report) {
                 return Err(NoFaceError::new_err(no_change_reason(&options)));
             }
-            self.inner
-                .correct(&image, &report, &options)
-                .map_err(to_pyerr)
+            unshear::Unshear::correct(&image, &report, &options).map_err(to_pyerr)
         })?;
         to_array(py, result, layout)
     }
@@ -312,10 +310,7 @@ impl PyUnshear {
             if !options.changes(&report) {
                 return Err(NoFaceError::new_err(no_change_reason(&options)));
             }
-            let fixed = self
-                .inner
-                .correct(&img, &report, &options)
-                .map_err(to_pyerr)?;
+            let fixed = unshear::Unshear::correct(&img, &report, &options).map_err(to_pyerr)?;
             drop(img);
             let write = WriteOptions {
                 overwrite,
@@ -334,7 +329,7 @@ impl PyUnshear {
         let ours = self.config.to_dict(py)?;
         let defaults = PyConfig::default().to_dict(py)?;
         let mut parts = Vec::new();
-        for key in config::KEYS {
+        for key in config::keys() {
             let value = ours.as_any().get_item(key)?;
             if !value.eq(defaults.as_any().get_item(key)?)? {
                 parts.push(format!("{key}={}", value.repr()?));
@@ -431,6 +426,34 @@ fn distort<'py>(
     to_array(py, out, layout)
 }
 
+/// The settings ``Unshear(**config)`` and ``VideoCorrector(**config)`` take, one dict each:
+/// ``name``, ``kind`` (``"flag"``, ``"integer"``, ``"number"``, ``"numbers"`` or
+/// ``"choice"``), ``choices`` (the names of a choice, else empty), ``default`` and ``help``
+/// (text, as ``unshear --help`` gives them).
+#[pyfunction]
+fn options(py: Python<'_>) -> PyResult<Vec<Bound<'_, PyDict>>> {
+    use unshear::config::OptionKind;
+    unshear::config::options()
+        .iter()
+        .map(|o| {
+            let d = PyDict::new(py);
+            let (kind, choices): (&str, &[&str]) = match o.kind {
+                OptionKind::Flag => ("flag", &[]),
+                OptionKind::Integer => ("integer", &[]),
+                OptionKind::Number => ("number", &[]),
+                OptionKind::Numbers => ("numbers", &[]),
+                OptionKind::Choice(names) => ("choice", names),
+            };
+            d.set_item("name", o.name)?;
+            d.set_item("kind", kind)?;
+            d.set_item("choices", choices.to_vec())?;
+            d.set_item("default", o.default)?;
+            d.set_item("help", o.help)?;
+            Ok(d)
+        })
+        .collect()
+}
+
 #[pymodule]
 fn _unshear(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyUnshear>()?;
@@ -441,6 +464,7 @@ fn _unshear(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(read, m)?)?;
     m.add_function(wrap_pyfunction!(write, m)?)?;
     m.add_function(wrap_pyfunction!(distort, m)?)?;
+    m.add_function(wrap_pyfunction!(options, m)?)?;
     m.add("NoFaceError", m.py().get_type::<NoFaceError>())?;
     m.add("DEFAULT_MAX_PIXELS", DEFAULT_MAX_PIXELS)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

@@ -23,6 +23,7 @@ from ._unshear import (
     VideoCorrector,
     __version__,
     distort,
+    options,
     read,
     write,
 )
@@ -37,6 +38,7 @@ __all__ = [
     "VideoCorrector",
     "__version__",
     "distort",
+    "options",
     "read",
     "write",
 ]

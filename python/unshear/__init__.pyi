@@ -18,6 +18,7 @@ __all__ = [
     "VideoCorrector",
     "__version__",
     "distort",
+    "options",
     "read",
     "write",
 ]
@@ -162,9 +163,11 @@ class Unshear:
       view of every image, about 20 times slower than the network detector) or ``"single"``
       (``--no-shear-search``: one detection pass, the paper's).
     * ``min_confidence``: refuse estimates below this confidence, 0 to 1 (default 0.25).
+    * ``max_shear``: refuse estimates whose ``|k|`` is beyond this, above 0 and at most 2
+      (default 0.6; ``--max-shear``): usable photos' rolling-shutter shears stay well below.
     * ``max_crops``: most crops the network reads per face, 1 to 64 (default ``None``: 8 for
       stills, stopping when the estimate settles; 2 for video) (``--max-crops``).
-    * ``refinements``: filters only: locate again in the de-sheared face (``--refine``, 0).
+    * ``refinements``: filters only: locate again in the de-sheared face (``--refinements``, 0).
     * ``shear_model``: filters only: ``"equation5"``, ``"shear-roll"`` or ``"shear-roll-yaw"``
       (default ``None``: shear-roll-yaw for stills, equation5 for video).
     * ``filter_type``: the built-in filter set, ``"mosse"`` (default), ``"asef"``, ``"umace"``.
@@ -191,6 +194,7 @@ class Unshear:
         locator: Locator = "network",
         search: Search | None = None,
         min_confidence: float = 0.25,
+        max_shear: float = 0.6,
         max_crops: int | None = None,
         refinements: int = 0,
         shear_model: ShearModel | None = None,
@@ -365,6 +369,7 @@ class VideoCorrector:
         locator: Locator = "network",
         search: Search | None = None,
         min_confidence: float = 0.25,
+        max_shear: float = 0.6,
         max_crops: int | None = None,
         refinements: int = 0,
         shear_model: ShearModel | None = None,
@@ -388,6 +393,12 @@ class VideoCorrector:
         """Takes the next frame; returns the frame now due, corrected (zero or one)."""
     def finish(self) -> list[Frame]:
         """Ends the stream: every frame still held, corrected. Later pushes raise."""
+
+def options() -> list[dict[str, Any]]:
+    """The settings ``Unshear(**config)`` and ``VideoCorrector(**config)`` take, one dict each:
+    ``name``, ``kind`` (``"flag"``, ``"integer"``, ``"number"``, ``"numbers"`` or
+    ``"choice"``), ``choices`` (the names of a choice, else empty), ``default`` and ``help``
+    (text, as ``unshear --help`` gives them)."""
 
 def read(path: PathLike, *, bgr: bool = False, max_pixels: int = ...) -> Image:
     """Reads an image file (JPEG, PNG, PNM, BMP, TIFF, WebP; the format from the content; the

@@ -21,9 +21,9 @@ impl Unshear {
     /// untouched surroundings. A report read out by columns ([`Readout::Columns`]) is undone
     /// along the columns: the same warp on the transposed image, columns shifted by
     /// `-k (x - W/2)`. Fails with [`Error::InvalidArgument`] when there is no shear to apply
-    /// (no face and no `options.k`) or the shear is not finite.
+    /// (no face and no `options.k`) or the shear is not finite. It needs no models (the report
+    /// carries all it uses), so it takes no corrector.
     pub fn correct(
-        &self,
         img: &DynamicImage,
         report: &ImageReport,
         options: &CorrectOptions,
@@ -38,7 +38,7 @@ impl Unshear {
                 let b = f.face_box;
                 f.face_box = crate::geometry::Rect::new(b.y, b.x, b.height, b.width);
             }
-            let out = self.correct(&warp::transpose(img), &rows, options)?;
+            let out = Self::correct(&warp::transpose(img), &rows, options)?;
             return Ok(warp::transpose(&out));
         }
         if let Some(k) = options.k {

@@ -11,7 +11,7 @@
 //! let img = imageio::read_image("photo.jpg".as_ref(), imageio::DEFAULT_MAX_PIXELS)?;
 //! let report = unshear.estimate(&img);
 //! if let Some(k) = report.k {
-//!     let fixed = unshear.correct(&img, &report, &CorrectOptions::default())?;
+//!     let fixed = Unshear::correct(&img, &report, &CorrectOptions::default())?;
 //!     println!("k = {k:.3}, corrected {}x{}", fixed.width(), fixed.height());
 //! }
 //! # Ok(())
@@ -22,6 +22,7 @@ mod combine;
 pub mod confidence;
 mod correct;
 mod face;
+mod photo;
 mod proposals;
 mod report;
 mod search;
@@ -34,6 +35,7 @@ use rayon::prelude::*;
 pub use combine::{combined_shear, consensus, mark_consensus, Consensus, FACE_UNCERTAINTY};
 pub use correct::FACE_REGION_MARGIN;
 pub use face::FaceStart;
+pub use photo::FileOptions;
 pub use proposals::{box_from_eyes, follows, FOLLOW_MAX_MOVE, FOLLOW_MAX_SCALE};
 pub use report::{CorrectOptions, FaceReport, ImageReport, Readout, Refusal, Region};
 pub use search::{
@@ -177,15 +179,10 @@ impl Unshear {
         Self::with_models(config, models)
     }
 
-    /// A corrector with `models`; fails when `config` does not validate
-    /// ([`Config::validate`]).
-    pub fn with_models(mut config: Config, models: Models) -> Result<Self> {
-        config.validate()?;
-        // The Viola-Jones searches' boxes, often on texture, are judged by face-score limits
-        // set on single readings: the mirrored readings serve the network detector only.
-        if config.detector == crate::config::Detector::ViolaJones {
-            config.network_budget.mirrored = false;
-        }
+    /// A corrector with `models`, running `config` resolved ([`Config::resolve`]); fails when
+    /// it does not validate.
+    pub fn with_models(config: Config, models: Models) -> Result<Self> {
+        let config = config.resolve()?;
         let detector = FaceDetector::new(models.cascade, config.cascade);
         let finite = |v: &[f64]| {
             v.iter()
@@ -251,7 +248,8 @@ impl Unshear {
         })
     }
 
-    /// The configuration it runs with.
+    /// The settings it runs with: the [`Config`] it was made with, resolved
+    /// ([`Config::resolve`]).
     pub fn config(&self) -> &Config {
         &self.config
     }
@@ -886,8 +884,10 @@ impl Unshear {
         self.config.locator
     }
 
-    /// The face detector.
-    pub fn detector(&self) -> &FaceDetector {
+    /// The Viola-Jones detector ([`Config::cascade`]): what finds the faces when
+    /// [`Self::uses_network_detector`] is false (and what the video tracker holds); otherwise
+    /// the face proposal network finds them and this one is not run on stills.
+    pub fn cascade_detector(&self) -> &FaceDetector {
         &self.detector
     }
 

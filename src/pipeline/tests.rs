@@ -628,20 +628,18 @@ fn no_face_means_no_k_and_correction_needs_one() {
     let img = DynamicImage::ImageLuma8(GrayImage::from_pixel(120, 90, image::Luma([128])));
     let report = unshear.estimate(&img);
     assert!(report.faces.is_empty() && report.k.is_none());
-    assert!(unshear
-        .correct(&img, &report, &CorrectOptions::default())
-        .is_err());
+    assert!(Unshear::correct(&img, &report, &CorrectOptions::default()).is_err());
     let forced = CorrectOptions {
         k: Some(0.2),
         ..Default::default()
     };
-    let out = unshear.correct(&img, &report, &forced).expect("k given");
+    let out = Unshear::correct(&img, &report, &forced).expect("k given");
     assert_eq!((out.width(), out.height()), (120, 90));
     let bad = CorrectOptions {
         k: Some(f64::NAN),
         ..Default::default()
     };
-    assert!(unshear.correct(&img, &report, &bad).is_err());
+    assert!(Unshear::correct(&img, &report, &bad).is_err());
 }
 
 #[test]
@@ -1028,9 +1026,7 @@ fn a_correction_by_columns_straightens_a_vertically_sheared_line() {
         height: 80,
         readout: Readout::Columns,
     };
-    let u = built(Config::default());
-    let fixed = u
-        .correct(&sheared, &report, &CorrectOptions::default())
+    let fixed = Unshear::correct(&sheared, &report, &CorrectOptions::default())
         .expect("corrected")
         .to_luma8();
     let mean_error = |img: &GrayImage| {
@@ -1053,8 +1049,6 @@ fn a_correction_by_columns_straightens_a_vertically_sheared_line() {
         readout: Readout::Rows,
         ..report
     };
-    let wrong = u
-        .correct(&sheared, &rows, &CorrectOptions::default())
-        .expect("corrected");
+    let wrong = Unshear::correct(&sheared, &rows, &CorrectOptions::default()).expect("corrected");
     assert!(mean_error(&wrong.to_luma8()) > 15.0);
 }

@@ -281,7 +281,7 @@ impl<'a> VideoProcessor<'a> {
     pub fn new(unshear: &'a Unshear, options: ProcessOptions) -> Self {
         Self {
             unshear,
-            tracker: FaceTracker::new(unshear.detector().clone(), options.tracker),
+            tracker: FaceTracker::new(unshear.cascade_detector().clone(), options.tracker),
             followed: Vec::new(),
             network_stats: TrackerStats::default(),
             smoother: ShearSmoother::new(options.filter, options.smoothing_lag),

@@ -390,7 +390,7 @@ fn run_probe(unshear: &Unshear, img: &DynamicImage, options: &RecognitionOptions
                     interpolation: Interpolation::Linear,
                     k: None,
                 };
-                let fixed = unshear.correct(&sheared, &report, &opts).ok()?;
+                let fixed = Unshear::correct(&sheared, &report, &opts).ok()?;
                 features(&fixed).0
             });
             (raw, report.k, corrected)
