@@ -77,12 +77,7 @@ fn bench(c: &mut Criterion) {
     // Rendering one crop for the network (sheared 0.2, rolled 0.1 rad) from the fixture, at
     // about one and about two image pixels per crop pixel (2x2 and 3x3 reads per crop pixel).
     for eye_distance in [30.0, 60.0] {
-        let frame = net.frame(
-            unshear::geometry::Point::new(160.0, 110.0),
-            eye_distance,
-            0.2,
-            0.1,
-        );
+        let frame = net.frame(unshear::Point::new(160.0, 110.0), eye_distance, 0.2, 0.1);
         let name = format!("landmark crop render, eyes {eye_distance} px apart");
         c.bench_function(&name, |b| b.iter(|| frame.render(&gray)));
     }

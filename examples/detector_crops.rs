@@ -47,7 +47,7 @@ use rayon::prelude::*;
 use unshear::detect::boxes::{CROP_EYE_DISTANCES, EYES_ABOVE_CENTRE};
 use unshear::dev::dataset::{photos_with_small_faces, AnnotatedFace, CaltechWebFaces, FaceDataset};
 use unshear::dev::SplitMix64;
-use unshear::geometry::Point;
+use unshear::Point;
 
 /// Side of the windows, pixels.
 const SIZE: usize = 32;

@@ -26,8 +26,8 @@ use std::time::Instant;
 use image::GrayImage;
 use unshear::detect::{Proposal, ProposalNet, ProposalParams};
 use unshear::dev::dataset::{by_image, AnnotatedFace, CaltechWebFaces, FaceDataset};
-use unshear::geometry::{Point, Shear};
 use unshear::warp::{try_apply_shear, Canvas, Interpolation};
+use unshear::{Point, Shear};
 
 /// Smallest eye distance searched: a 40 px detector box.
 const MIN_EYE_DISTANCE: f64 = 40.0 * unshear::detect::boxes::EYE_DISTANCE_PER_BOX_WIDTH;

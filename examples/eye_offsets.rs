@@ -19,8 +19,7 @@ use anyhow::{Context, Result};
 use unshear::detect::boxes::face_box_from_eyes;
 use unshear::dev::dataset::{CaltechWebFaces, FaceDataset};
 use unshear::filters::EyeFilters;
-use unshear::locate::filters::{FeatureLocator, NormalizedFace};
-use unshear::stats::median;
+use unshear::internals::{median, FeatureLocator, NormalizedFace};
 
 fn main() -> Result<()> {
     let args: Vec<String> = std::env::args().collect();

@@ -26,12 +26,12 @@ use anyhow::{Context, Result};
 use rayon::prelude::*;
 use unshear::dev::dataset::{by_image, CaltechWebFaces, FaceDataset};
 use unshear::dev::eval::shear::{context_crop, DEFAULT_CONTEXT};
-use unshear::geometry::{Point, Shear};
-use unshear::locate::filters::{
+use unshear::internals::{
     expected_eyes, EyeSearch, FeatureLocator, NormalizedFace, EYE_CANDIDATES, EYE_PAIR_FEATURES,
 };
 use unshear::pipeline::Unshear;
 use unshear::warp::{try_apply_shear, Canvas, Interpolation};
+use unshear::{Point, Shear};
 
 const SHEARS: [f64; 3] = [0.0, 0.4, -0.4];
 

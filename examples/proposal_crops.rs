@@ -27,9 +27,9 @@ use std::path::{Path, PathBuf};
 use rayon::prelude::*;
 use unshear::dev::dataset::{photos_with_small_faces, AnnotatedFace, CaltechWebFaces, FaceDataset};
 use unshear::dev::SplitMix64;
-use unshear::geometry::{Point, Shear};
 use unshear::locate::network::{frame_around_eyes, CropFrame};
 use unshear::warp::{try_apply_shear, Canvas, Interpolation, Placement};
+use unshear::{Point, Shear};
 
 /// Side of the windows, pixels.
 const SIZE: usize = 32;

@@ -12,6 +12,7 @@ use image::{DynamicImage, Rgb, RgbImage};
 
 /// Everything drawn for one face.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct FaceMarks {
     /// The detected face box.
     pub face_box: Rect,
@@ -30,23 +31,23 @@ pub struct FaceMarks {
 }
 
 /// Colour of the face box (sky blue).
-pub const BOX_COLOR: Rgb<u8> = Rgb([0, 170, 255]);
+pub(crate) const BOX_COLOR: Rgb<u8> = Rgb([0, 170, 255]);
 /// Colour of the eye marks (green).
-pub const EYE_COLOR: Rgb<u8> = Rgb([0, 230, 0]);
+pub(crate) const EYE_COLOR: Rgb<u8> = Rgb([0, 230, 0]);
 /// Colour of the nostril marks (orange).
-pub const NOSTRIL_COLOR: Rgb<u8> = Rgb([255, 120, 0]);
+pub(crate) const NOSTRIL_COLOR: Rgb<u8> = Rgb([255, 120, 0]);
 /// Colour of the mouth mark (violet).
-pub const MOUTH_COLOR: Rgb<u8> = Rgb([170, 80, 255]);
+pub(crate) const MOUTH_COLOR: Rgb<u8> = Rgb([170, 80, 255]);
 /// Colour of the eye-to-nostril lines (yellow).
-pub const LINK_COLOR: Rgb<u8> = Rgb([255, 230, 0]);
+pub(crate) const LINK_COLOR: Rgb<u8> = Rgb([255, 230, 0]);
 /// Colour of the face's vertical axis under the estimated shear (magenta).
-pub const AXIS_COLOR: Rgb<u8> = Rgb([255, 0, 200]);
+pub(crate) const AXIS_COLOR: Rgb<u8> = Rgb([255, 0, 200]);
 /// Outline drawn around each point so it stays visible on any background (black).
 const OUTLINE_COLOR: Rgb<u8> = Rgb([0, 0, 0]);
 
 /// Line width in pixels for an image: about 1/400 of its smaller side, at least 1, so marks stay
 /// visible on 50-megapixel photos without swamping small frames.
-pub fn line_width(width: u32, height: u32) -> f64 {
+pub(crate) fn line_width(width: u32, height: u32) -> f64 {
     (f64::from(width.min(height)) / 400.0).round().max(1.0)
 }
 

@@ -36,7 +36,7 @@ pub enum Error {
         limit: u64,
     },
     /// A file holds more bytes than any image within the pixel limit can take
-    /// ([`crate::imageio::max_file_bytes`]).
+    /// (`crate::imageio::max_file_bytes`).
     #[error("{path}: more than {limit} bytes, larger than any image within the pixel limit")]
     FileTooLarge {
         /// The file concerned.

@@ -61,11 +61,16 @@ impl Rect {
         Point::new(self.x + self.width / 2.0, self.y + self.height / 2.0)
     }
 
-    /// The box scaled by `factor` about its centre (`factor > 1` grows it).
+    /// The box scaled by `factor` about its centre (`factor > 1` grows it; `factor` 1 returns
+    /// the box exactly).
     pub fn scaled_about_center(&self, factor: f64) -> Rect {
         let (w, h) = (self.width * factor, self.height * factor);
-        let c = self.center();
-        Rect::new(c.x - w / 2.0, c.y - h / 2.0, w, h)
+        Rect::new(
+            self.x + (self.width - w) / 2.0,
+            self.y + (self.height - h) / 2.0,
+            w,
+            h,
+        )
     }
 
     /// Area (zero for an empty box).

@@ -10,7 +10,7 @@
 use crate::{Error, Result};
 use image::codecs::jpeg::JpegEncoder;
 use image::codecs::pnm::{PnmEncoder, PnmSubtype, SampleEncoding};
-use image::{DynamicImage, GrayImage, ImageDecoder, ImageReader, Limits};
+use image::{DynamicImage, ImageDecoder, ImageReader, Limits};
 use std::borrow::Cow;
 use std::io::{BufRead, BufWriter, Cursor, Seek, Write};
 use std::path::{Path, PathBuf};
@@ -27,14 +27,14 @@ const MAX_BYTES_PER_PIXEL: u64 = 16;
 ///
 /// The declared dimensions are checked against `max_pixels` before any pixel is decoded
 /// ([`Error::TooLarge`]), and the decoder's allocations are bounded accordingly; so is the file
-/// itself ([`max_file_bytes`]), which matters for devices and pipes. The EXIF orientation (JPEG,
+/// itself (`max_file_bytes`), which matters for devices and pipes. The EXIF orientation (JPEG,
 /// TIFF, WebP) is applied, so the result is upright; a missing or unreadable orientation tag is
 /// treated as "no transform".
 ///
 /// # Errors
 /// [`Error::Io`] if the file cannot be opened, [`Error::Image`] if the format is unknown or the
 /// data is corrupt, [`Error::TooLarge`] if the image exceeds `max_pixels` or the file
-/// [`max_file_bytes`].
+/// `max_file_bytes`.
 pub fn read_image(path: &Path, max_pixels: u64) -> Result<DynamicImage> {
     read_image_with_metadata(path, max_pixels).map(|(img, _)| img)
 }
@@ -55,7 +55,7 @@ pub fn read_image_with_metadata(path: &Path, max_pixels: u64) -> Result<(Dynamic
 /// 16-bit RGBA image stored uncompressed) plus 16 MiB for headers and metadata. Nothing larger
 /// can hold an image within the limit, and a device such as `/dev/zero` or an endless pipe is
 /// cut off there instead of filling the memory.
-pub fn max_file_bytes(max_pixels: u64) -> u64 {
+pub(crate) fn max_file_bytes(max_pixels: u64) -> u64 {
     max_pixels.saturating_mul(8).saturating_add(16 << 20)
 }
 
@@ -269,6 +269,7 @@ fn grey_alpha_tiff<R: std::io::Read + Seek>(
 /// that colours stay as shot (a Display P3 or Adobe RGB profile) and the camera, date and place
 /// are kept.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
+#[non_exhaustive]
 pub struct Metadata {
     /// The embedded ICC colour profile.
     pub icc_profile: Option<Vec<u8>>,
@@ -292,19 +293,19 @@ fn profile_fits(profile: &[u8], img: &DynamicImage) -> bool {
 
 /// Share of an image's rows from which [`missing_data_warning`] reports a bottom without data:
 /// half a picture of it is no photo.
-pub const MISSING_ROWS_SHARE: f64 = 0.5;
+pub(crate) const MISSING_ROWS_SHARE: f64 = 0.5;
 
 /// The row period [`missing_data_warning`] looks for: a JPEG decoder fills what a damaged file
 /// lacks by repeating its last blocks (or one flat value), so the rows repeat every 8 or 16
 /// (one MCU), which a photo's rows never do exactly over half the picture.
-pub const MISSING_ROWS_PERIOD: usize = 16;
+pub(crate) const MISSING_ROWS_PERIOD: usize = 16;
 
 /// A warning when the bottom [`MISSING_ROWS_SHARE`] or more of `img`'s rows each repeat the
 /// row [`MISSING_ROWS_PERIOD`] above exactly, as a decoder leaves the rows a damaged file has
 /// no data for (image-rs fills them and reports success; a JPEG whose header declared 308x56826
 /// pixels but held the data of a 320x243 photo decoded 99.5% of its rows so): what is measured
 /// in such an image is only its top. `None` otherwise, and for images under 32 rows.
-pub fn missing_data_warning(img: &DynamicImage) -> Option<String> {
+pub(crate) fn missing_data_warning(img: &DynamicImage) -> Option<String> {
     let h = img.height() as usize;
     let bytes = img.as_bytes();
     if h < 2 * MISSING_ROWS_PERIOD || bytes.is_empty() {
@@ -323,15 +324,6 @@ pub fn missing_data_warning(img: &DynamicImage) -> Option<String> {
             share * 100.0
         )
     })
-}
-
-/// Luma (8-bit grey) copy of any image, as used by the face detector and feature finder
-/// (Rec. 709 weights, as `image` computes them; alpha ignored).
-pub fn to_gray(img: &DynamicImage) -> GrayImage {
-    match img {
-        DynamicImage::ImageLuma8(g) => g.clone(),
-        other => other.to_luma8(),
-    }
 }
 
 /// The reason [`write_image_atomic`] gives when the output exists and may not be replaced
@@ -724,6 +716,7 @@ pub fn abandon_writes() -> usize {
 /// Tests of reading and writing. Each uses its own temporary folder.
 mod tests {
     use super::*;
+    use image::GrayImage;
     use image::{GenericImageView, ImageBuffer, Luma, LumaA, Rgb, RgbImage, Rgba};
 
     fn smooth(x: u32, y: u32, c: u32) -> u8 {
@@ -1271,13 +1264,5 @@ mod tests {
         ));
         assert!(temp_files_left(dir.path()).is_empty());
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
-    }
-
-    #[test]
-    fn gray_conversion() {
-        let img = DynamicImage::ImageRgb8(RgbImage::from_pixel(2, 2, Rgb([255, 255, 255])));
-        assert_eq!(to_gray(&img).get_pixel(1, 1)[0], 255);
-        let g = test_images()[0].clone();
-        assert_eq!(&to_gray(&g), g.as_luma8().unwrap());
     }
 }

@@ -58,20 +58,22 @@ pub mod config;
 pub mod detect;
 #[cfg(feature = "dev")]
 pub mod dev;
-pub mod error;
+mod error;
 pub mod estimate;
 pub mod filters;
 pub(crate) mod fitted;
-pub mod geometry;
+mod geometry;
 pub mod imageio;
+#[cfg(feature = "dev")]
+pub mod internals;
 pub mod locate;
 mod modelfile;
 pub(crate) mod nn;
 pub mod pipeline;
-pub mod resample;
+pub(crate) mod resample;
 #[cfg(any(test, feature = "dev"))]
 mod rng;
-pub mod stats;
+pub(crate) mod stats;
 #[cfg(test)]
 mod testing;
 pub mod video;

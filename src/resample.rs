@@ -12,7 +12,7 @@ use image::GrayImage;
 /// is bilinear when enlarging and an area-weighted average when shrinking (no aliasing).
 /// Hand-written because `image::imageops::resize` only takes integer crops and sizes, and the
 /// face geometry needs sub-pixel placement.
-pub fn resample(
+pub(crate) fn resample(
     gray: &GrayImage,
     x0: f64,
     y0: f64,
@@ -26,7 +26,7 @@ pub fn resample(
 /// Only the output rows `rows` (clipped to `0..height`) of [`resample`]'s `width x height`
 /// window, row-major: the same values as those rows of the whole window, bit for bit (each
 /// output row is computed from its own filter taps alone), for callers that read a band of it.
-pub fn resample_rows(
+pub(crate) fn resample_rows(
     gray: &GrayImage,
     x0: f64,
     y0: f64,
@@ -195,7 +195,7 @@ fn copy_clamped(gray: &GrayImage, x0: f64, y0: f64, width: usize, rows: Range<us
 /// `thumbnail` reads every pixel through `get_pixel` with four-channel sums, which took a third of
 /// a 1920x1080 frame's estimate; here each block's rows are summed once per output row with a
 /// loop the compiler vectorises. Sizes that enlarge either way go to `thumbnail` itself.
-pub fn shrink_by_area(gray: &GrayImage, width: u32, height: u32) -> GrayImage {
+pub(crate) fn shrink_by_area(gray: &GrayImage, width: u32, height: u32) -> GrayImage {
     let (w, h) = gray.dimensions();
     if w == 0 || h == 0 || width == 0 || height == 0 || width > w || height > h {
         return image::imageops::thumbnail(gray, width, height);
@@ -252,7 +252,7 @@ fn area_blocks(len: u32, new_len: u32) -> Vec<Range<usize>> {
 }
 
 /// Bilinear sample of a `w x h` raster at `(x, y)`, coordinates clamped to the raster.
-pub fn bilinear_clamped(src: &[f32], w: usize, h: usize, x: f64, y: f64) -> f32 {
+pub(crate) fn bilinear_clamped(src: &[f32], w: usize, h: usize, x: f64, y: f64) -> f32 {
     let x = x.clamp(0.0, (w - 1) as f64);
     let y = y.clamp(0.0, (h - 1) as f64);
     // Truncation is the floor here (both are at least 0), without a call to libm's `floor`.

@@ -2,6 +2,7 @@
 
 /// Median of the finite values (mean of the middle two for an even count); `None` when there
 /// are none.
+#[cfg(any(test, feature = "dev"))]
 pub fn median(mut values: Vec<f64>) -> Option<f64> {
     values.retain(|v| v.is_finite());
     if values.is_empty() {
@@ -19,7 +20,7 @@ pub fn median(mut values: Vec<f64>) -> Option<f64> {
 /// The weighted median of `(value, weight)` pairs: the value where half of the total weight
 /// lies on either side (midway to the next value when exactly half lies below). Pairs with a
 /// non-finite value or weight are ignored; `None` when none is left.
-pub fn weighted_median(pairs: impl IntoIterator<Item = (f64, f64)>) -> Option<f64> {
+pub(crate) fn weighted_median(pairs: impl IntoIterator<Item = (f64, f64)>) -> Option<f64> {
     let mut weighted: Vec<(f64, f64)> = pairs
         .into_iter()
         .filter(|(v, w)| v.is_finite() && w.is_finite())

@@ -141,7 +141,7 @@ fn sheared_face(face: usize, k: f64) -> GrayImage {
 /// The measured shear (refused or not: these properties are of the estimator, not of the
 /// confidence threshold).
 fn k_of(img: &GrayImage) -> Option<f64> {
-    unshear::stats::median(
+    common::median(
         unshear()
             .estimate_gray(img)
             .faces

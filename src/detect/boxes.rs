@@ -6,9 +6,9 @@ use crate::geometry::{Point, Rect};
 /// Where the subject's right eye sits in a detector box, as fractions of the box width/height:
 /// the median over 2532 Caltech development faces matched to `haarcascade_frontalface_alt2`
 /// detections (docs/how-it-works.md).
-pub const RIGHT_EYE_IN_BOX: (f64, f64) = (0.3184, 0.397);
+pub(crate) const RIGHT_EYE_IN_BOX: (f64, f64) = (0.3184, 0.397);
 /// Where the subject's left eye sits in a detector box (same measurement).
-pub const LEFT_EYE_IN_BOX: (f64, f64) = (0.698, 0.394);
+pub(crate) const LEFT_EYE_IN_BOX: (f64, f64) = (0.698, 0.394);
 /// Eye distance divided by the detector box width (same measurement). Used to derive a face box
 /// from located eyes exactly as the detector would draw it.
 pub const EYE_DISTANCE_PER_BOX_WIDTH: f64 = 0.381;
@@ -23,7 +23,7 @@ pub const CROP_EYE_DISTANCES: f64 = 3.3;
 pub const EYES_ABOVE_CENTRE: f64 = 0.35;
 
 /// Where the eyes' midpoint sits in a detector box, as fractions of its width and height.
-pub fn eyes_in_box() -> (f64, f64) {
+pub(crate) fn eyes_in_box() -> (f64, f64) {
     (
         (RIGHT_EYE_IN_BOX.0 + LEFT_EYE_IN_BOX.0) / 2.0,
         (RIGHT_EYE_IN_BOX.1 + LEFT_EYE_IN_BOX.1) / 2.0,
@@ -46,7 +46,7 @@ pub fn face_box_from_eyes(right_eye: Point, left_eye: Point) -> Rect {
 
 /// The `width x height` box that, turned by `roll` radians about its centre, has its eye row's
 /// midpoint at `eyes`.
-pub fn box_around_eyes(eyes: Point, width: f64, height: f64, roll: f64) -> Rect {
+pub(crate) fn box_around_eyes(eyes: Point, width: f64, height: f64, roll: f64) -> Rect {
     let (at_x, at_y) = eyes_in_box();
     // The eyes' offset from the box centre, turned as the face is in the input.
     let (ox, oy) = ((at_x - 0.5) * width, (at_y - 0.5) * height);
@@ -62,7 +62,7 @@ pub fn box_around_eyes(eyes: Point, width: f64, height: f64, roll: f64) -> Rect 
 
 /// Where `face_box`, turned by `roll` radians about its centre, predicts the eyes' midpoint
 /// (the inverse of [`box_around_eyes`]).
-pub fn eyes_of_box(face_box: Rect, roll: f64) -> Point {
+pub(crate) fn eyes_of_box(face_box: Rect, roll: f64) -> Point {
     let (at_x, at_y) = eyes_in_box();
     let centre = face_box.center();
     let (ox, oy) = (
@@ -71,16 +71,6 @@ pub fn eyes_of_box(face_box: Rect, roll: f64) -> Point {
     );
     let (s, c) = roll.sin_cos();
     Point::new(centre.x + c * ox - s * oy, centre.y + s * ox + c * oy)
-}
-
-/// `b` scaled by `factor` about its centre (a second detector's box mapped onto the main
-/// detector's; `factor` 1 returns `b` exactly).
-pub fn scaled_about_centre(b: Rect, factor: f64) -> Rect {
-    if factor == 1.0 {
-        return b;
-    }
-    let (w, h) = (b.width * factor, b.height * factor);
-    Rect::new(b.x + (b.width - w) / 2.0, b.y + (b.height - h) / 2.0, w, h)
 }
 
 #[cfg(test)]
@@ -103,14 +93,5 @@ mod tests {
             let b = box_around_eyes(eyes, 80.0, 90.0, roll);
             assert!(eyes_of_box(b, roll).distance(eyes) < 1e-9, "roll {roll}");
         }
-    }
-
-    #[test]
-    fn scaling_keeps_the_centre() {
-        let b = Rect::new(10.0, 20.0, 40.0, 60.0);
-        assert_eq!(scaled_about_centre(b, 1.0), b);
-        let s = scaled_about_centre(b, 0.5);
-        assert!(s.center().distance(b.center()) < 1e-12);
-        assert!((s.width - 20.0).abs() < 1e-12 && (s.height - 30.0).abs() < 1e-12);
     }
 }

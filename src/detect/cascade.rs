@@ -39,29 +39,29 @@ const MAX_RECTS: usize = 3;
 /// One weighted rectangle of a Haar feature, in window pixels.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct HaarRect {
-    pub x: i32,
-    pub y: i32,
-    pub w: i32,
-    pub h: i32,
-    pub weight: f32,
+    pub(crate) x: i32,
+    pub(crate) y: i32,
+    pub(crate) w: i32,
+    pub(crate) h: i32,
+    pub(crate) weight: f32,
 }
 
 /// A Haar-like feature: up to three weighted rectangles, upright or rotated by 45°.
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct Feature {
     /// Unused slots have weight 0 and an empty rectangle, as in OpenCV.
-    pub rects: [HaarRect; MAX_RECTS],
-    pub tilted: bool,
+    pub(crate) rects: [HaarRect; MAX_RECTS],
+    pub(crate) tilted: bool,
 }
 
 /// An internal tree node: `value < threshold` goes left. A child `> 0` is a node index within
 /// the same tree, a child `<= 0` is the leaf `-child` of that tree.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct TreeNode {
-    pub left: i32,
-    pub right: i32,
-    pub feature: u32,
-    pub threshold: f32,
+    pub(crate) left: i32,
+    pub(crate) right: i32,
+    pub(crate) feature: u32,
+    pub(crate) threshold: f32,
 }
 
 /// The shape all of a cascade's trees share, if any.
@@ -80,32 +80,32 @@ pub(crate) enum TreeShape {
 /// One weak classifier: a run of nodes and a run of leaves in the cascade's flat arrays.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct Tree {
-    pub first_node: u32,
-    pub first_leaf: u32,
+    pub(crate) first_node: u32,
+    pub(crate) first_leaf: u32,
 }
 
 /// One boosting stage: a run of trees and the threshold their summed leaves must reach.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct Stage {
-    pub first_tree: u32,
-    pub tree_count: u32,
+    pub(crate) first_tree: u32,
+    pub(crate) tree_count: u32,
     /// Already lowered by [`THRESHOLD_EPS`].
-    pub threshold: f32,
+    pub(crate) threshold: f32,
 }
 
 /// The flat arrays of a parsed cascade.
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct CascadeData {
-    pub window: (u32, u32),
-    pub stages: Vec<Stage>,
-    pub trees: Vec<Tree>,
-    pub nodes: Vec<TreeNode>,
-    pub leaves: Vec<f32>,
-    pub features: Vec<Feature>,
+    pub(crate) window: (u32, u32),
+    pub(crate) stages: Vec<Stage>,
+    pub(crate) trees: Vec<Tree>,
+    pub(crate) nodes: Vec<TreeNode>,
+    pub(crate) leaves: Vec<f32>,
+    pub(crate) features: Vec<Feature>,
     /// How every tree is shaped: [`TreeShape::RootAndOneChild`] trees are scored without
     /// branches.
-    pub shape: TreeShape,
-    pub has_tilted: bool,
+    pub(crate) shape: TreeShape,
+    pub(crate) has_tilted: bool,
 }
 
 /// A boosted cascade of Haar-feature trees, as trained by OpenCV.
@@ -133,7 +133,7 @@ impl Cascade {
     /// stages), embedded in the library. It fires on some faces that alt2 misses (rolled, partly
     /// covered) and on more non-faces, so the pipeline asks it only on request
     /// (the quick search's fallback cascade). Parsed once per process.
-    pub fn frontal_face_default() -> Cascade {
+    pub(crate) fn frontal_face_default() -> Cascade {
         static CELL: OnceLock<Cascade> = OnceLock::new();
         Self::embedded(&CELL, FRONTAL_FACE_DEFAULT_XML)
     }
@@ -191,27 +191,32 @@ impl Cascade {
     }
 
     /// The training window `(width, height)` in pixels (20×20 for the frontal-face cascades).
-    pub fn window_size(&self) -> (u32, u32) {
+    #[cfg(test)]
+    pub(crate) fn window_size(&self) -> (u32, u32) {
         self.data.window
     }
 
     /// Number of boosting stages.
-    pub fn stage_count(&self) -> usize {
+    #[cfg(test)]
+    pub(crate) fn stage_count(&self) -> usize {
         self.data.stages.len()
     }
 
     /// Number of weak classifiers (trees) over all stages.
-    pub fn tree_count(&self) -> usize {
+    #[cfg(test)]
+    pub(crate) fn tree_count(&self) -> usize {
         self.data.trees.len()
     }
 
     /// Number of distinct Haar features.
-    pub fn feature_count(&self) -> usize {
+    #[cfg(test)]
+    pub(crate) fn feature_count(&self) -> usize {
         self.data.features.len()
     }
 
     /// Whether any feature is rotated by 45° (needs the tilted integral image).
-    pub fn has_tilted_features(&self) -> bool {
+    #[cfg(test)]
+    pub(crate) fn has_tilted_features(&self) -> bool {
         self.data.has_tilted
     }
 }

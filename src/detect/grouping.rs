@@ -16,10 +16,10 @@ pub(crate) const GROUP_EPS: f64 = 0.2;
 /// An integer box like OpenCV's `cv::Rect`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub(crate) struct IRect {
-    pub x: i32,
-    pub y: i32,
-    pub w: i32,
-    pub h: i32,
+    pub(crate) x: i32,
+    pub(crate) y: i32,
+    pub(crate) w: i32,
+    pub(crate) h: i32,
 }
 
 /// OpenCV's `SimilarRects`.

@@ -16,25 +16,25 @@
 #[derive(Debug, Clone)]
 pub(crate) struct Integrals {
     /// Row length of every plane: image width + 1.
-    pub stride: usize,
+    pub(crate) stride: usize,
     /// Rows of every plane: the most image rows it can hold + 1.
-    pub rows: usize,
+    pub(crate) rows: usize,
     /// `[sum | sqsum | tilted?]`, each `stride * rows` long.
-    pub buf: Vec<i32>,
+    pub(crate) buf: Vec<i32>,
     tilted: bool,
 }
 
 impl Integrals {
     /// Plane index of the plain sum.
-    pub const SUM: usize = 0;
+    pub(crate) const SUM: usize = 0;
     /// Plane index of the sum of squares (read back as `u32`).
-    pub const SQSUM: usize = 1;
+    pub(crate) const SQSUM: usize = 1;
     /// Plane index of the tilted sum (present only when asked for).
-    pub const TILTED: usize = 2;
+    pub(crate) const TILTED: usize = 2;
 
     /// Build the integrals of a `width × height` 8-bit image stored row-major in `pixels`.
     #[cfg(test)]
-    pub fn new(pixels: &[u8], width: usize, height: usize, tilted: bool) -> Self {
+    pub(crate) fn new(pixels: &[u8], width: usize, height: usize, tilted: bool) -> Self {
         let mut ii = Self::with_capacity(width, height, tilted);
         ii.compute(pixels, height);
         ii
@@ -42,7 +42,7 @@ impl Integrals {
 
     /// Zeroed planes for images `width` wide and up to `max_height` rows high; the plane layout
     /// (and so every feature offset) depends only on these two numbers.
-    pub fn with_capacity(width: usize, max_height: usize, tilted: bool) -> Self {
+    pub(crate) fn with_capacity(width: usize, max_height: usize, tilted: bool) -> Self {
         let stride = width + 1;
         let rows = max_height + 1;
         let planes = if tilted { 3 } else { 2 };
@@ -57,7 +57,7 @@ impl Integrals {
     /// Fill the planes from the first `height` rows of `pixels` (row-major, `stride − 1` wide;
     /// `height` at most the capacity). Entries below row `height` keep stale values and must
     /// not be read.
-    pub fn compute(&mut self, pixels: &[u8], height: usize) {
+    pub(crate) fn compute(&mut self, pixels: &[u8], height: usize) {
         let (stride, width) = (self.stride, self.stride - 1);
         let plane = stride * self.rows;
         debug_assert!(height < self.rows && pixels.len() >= width * height);
@@ -92,12 +92,12 @@ impl Integrals {
 
     /// Start of plane `p` in [`Integrals::buf`].
     #[cfg(test)]
-    pub fn plane_offset(&self, p: usize) -> usize {
+    pub(crate) fn plane_offset(&self, p: usize) -> usize {
         Self::plane_offset_in(self.stride, self.rows, p)
     }
 
     /// Start of plane `p` in the buffer of integrals with this `stride` and `rows`.
-    pub fn plane_offset_in(stride: usize, rows: usize, p: usize) -> usize {
+    pub(crate) fn plane_offset_in(stride: usize, rows: usize, p: usize) -> usize {
         p * stride * rows
     }
 }

@@ -33,6 +33,7 @@ mod resize;
 mod viola_jones;
 
 pub use cascade::Cascade;
-pub use proposals::{Proposal, ProposalNet, ProposalParams, OUTPUT_NAMES};
-pub use resize::{shrunk_to_width, to_gray_opencv};
-pub use viola_jones::{DetectorParams, FaceDetector, NearMisses, NEAR_MISS_MAX_IOU};
+pub use proposals::{Proposal, ProposalNet, ProposalParams};
+pub(crate) use resize::shrunk_to_width;
+pub use resize::to_gray_opencv;
+pub use viola_jones::{DetectorParams, FaceDetector};

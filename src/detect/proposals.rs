@@ -49,7 +49,7 @@ const VERSIONS: [u32; 2] = [1, 2];
 /// The output channels a version-2 file may name, the logit first: the eyes' midpoint's offset
 /// from the window's expected one (`dx`, `dy`, window eye distances), the log of the face's
 /// eye distance over the window's (`log_scale`), the face's shear `k` and roll (radians).
-pub const OUTPUT_NAMES: [&str; 6] = ["logit", "dx", "dy", "log_scale", "k", "roll"];
+pub(crate) const OUTPUT_NAMES: [&str; 6] = ["logit", "dx", "dy", "log_scale", "k", "roll"];
 
 /// How far this forward pass's logit on the check window may be from the trainer's: summation
 /// order moves it by far less, a wrong layout or layer by far more.
@@ -157,6 +157,7 @@ fn regressed(outputs: &[f32], channel: Option<usize>, limit: f64) -> f64 {
 
 /// A place where the classifier sees a face.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct Proposal {
     /// The eyes' midpoint the window expects, image pixels (moved by the network's regressed
     /// offset when it gives one).
@@ -238,13 +239,14 @@ impl ProposalNet {
 
     /// The output channels' names ([`OUTPUT_NAMES`]), the logit first (`["logit"]` for a
     /// version-1 file).
-    pub fn outputs(&self) -> &[String] {
+    #[cfg(test)]
+    pub(crate) fn outputs(&self) -> &[String] {
         &self.outputs
     }
 
     /// Whether the network regresses the face's size (and so places its proposals itself
     /// between pyramid levels).
-    pub fn regresses_size(&self) -> bool {
+    pub(crate) fn regresses_size(&self) -> bool {
         self.channels.log_scale.is_some()
     }
 
@@ -257,12 +259,12 @@ impl ProposalNet {
     /// forward pass must give the trainer's logit on the check window.
     ///
     /// Version 1 has one output, the logit. Version 2 adds `outputs`, the output channels'
-    /// names (of [`OUTPUT_NAMES`], each at most once, `"logit"` first; the last layer has one
+    /// names (of `OUTPUT_NAMES`, each at most once, `"logit"` first; the last layer has one
     /// output per name), and `check_outputs`, the trainer's every output on the check window
     /// (each compared, as the logit); optionally `scale_step` and `min_logit`, the search the
     /// network is meant for ([`Self::default_params`]). The output stride is the product of
     /// the layers' strides.
-    pub fn from_bytes(bytes: &[u8]) -> Result<Self> {
+    pub(crate) fn from_bytes(bytes: &[u8]) -> Result<Self> {
         let (header, version, mut file): (Header, _, _) =
             ModelFile::open_versions(bytes, MAGIC, &VERSIONS, "a face proposal network")?;
         let outputs: Vec<String> = match (version, header.outputs) {
@@ -391,19 +393,22 @@ impl ProposalNet {
     }
 
     /// Side of the window the classifier judges, pixels.
-    pub fn window(&self) -> usize {
+    #[cfg(test)]
+    pub(crate) fn window(&self) -> usize {
         self.window
     }
 
     /// Pixels between neighbouring windows in [`Self::score_map`].
-    pub fn stride(&self) -> usize {
+    #[cfg(test)]
+    pub(crate) fn stride(&self) -> usize {
         self.stride
     }
 
     /// The classifier's logit for every window of `level` whose top-left corner is a multiple
     /// of [`Self::stride`], as `(scores, columns, rows)`, row-major; empty when `level` is
     /// smaller than the window.
-    pub fn score_map(&self, level: &GrayImage) -> (Vec<f32>, usize, usize) {
+    #[cfg(test)]
+    pub(crate) fn score_map(&self, level: &GrayImage) -> (Vec<f32>, usize, usize) {
         let (all, cols, rows) = self.output_map(level);
         let per = self.outputs.len();
         (all.into_iter().step_by(per).collect(), cols, rows)
@@ -411,7 +416,7 @@ impl ProposalNet {
 
     /// Every output ([`Self::outputs`]) for every window of [`Self::score_map`], as
     /// `(outputs, columns, rows)`: the windows row-major, each window's outputs together.
-    pub fn output_map(&self, level: &GrayImage) -> (Vec<f32>, usize, usize) {
+    pub(crate) fn output_map(&self, level: &GrayImage) -> (Vec<f32>, usize, usize) {
         self.output_map_in(level, None)
     }
 

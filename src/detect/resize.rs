@@ -172,7 +172,7 @@ pub fn to_gray_opencv(img: &DynamicImage) -> GrayImage {
 /// `gray` shrunk by area averaging to at most `width` columns (0: never), and the factor from
 /// the shrunk image's pixels back to `gray`'s (1 when it is not shrunk): detection on a video
 /// frame costs in proportion to its pixels.
-pub fn shrunk_to_width(gray: &GrayImage, width: u32) -> (Cow<'_, GrayImage>, f64) {
+pub(crate) fn shrunk_to_width(gray: &GrayImage, width: u32) -> (Cow<'_, GrayImage>, f64) {
     let (w, h) = gray.dimensions();
     if width == 0 || w <= width {
         return (Cow::Borrowed(gray), 1.0);

@@ -39,9 +39,9 @@ pub struct DetectorParams {
     /// Largest box to report; `None` (or a zero dimension, as in OpenCV) means the whole image.
     pub max_size: Option<(u32, u32)>,
     /// How many of the cascade's last stages a window may fail and still count towards a near
-    /// miss ([`FaceDetector::detect_with_near_misses`]; as OpenCV's `outputRejectLevels` keeps
+    /// miss (`FaceDetector::detect_with_near_misses`; as OpenCV's `outputRejectLevels` keeps
     /// windows that reach the last stages). 0, the default, gives none. The boxes of
-    /// [`FaceDetector::detect`] and [`FaceDetector::detect_with_neighbors`] never depend on it.
+    /// [`FaceDetector::detect`] and `FaceDetector::detect_with_neighbors` never depend on it.
     pub stage_slack: u32,
     /// Where the scale ladder starts, in steps of `scale_factor`: the first scale is
     /// `scale_factor^scale_offset` times the cascade window (0, the default, is OpenCV's ladder;
@@ -81,12 +81,12 @@ impl FaceDetector {
     }
 
     /// The cascade in use.
-    pub fn cascade(&self) -> &Cascade {
+    pub(crate) fn cascade(&self) -> &Cascade {
         &self.cascade
     }
 
     /// The search parameters in use.
-    pub fn params(&self) -> &DetectorParams {
+    pub(crate) fn params(&self) -> &DetectorParams {
         &self.params
     }
 
@@ -103,7 +103,7 @@ impl FaceDetector {
 
     /// Detected boxes with the number of raw hits merged into each (a confidence: more is
     /// surer). With `min_neighbors == 0` every raw hit is returned with count 1.
-    pub fn detect_with_neighbors(&self, gray: &GrayImage) -> Vec<(Rect, u32)> {
+    pub(crate) fn detect_with_neighbors(&self, gray: &GrayImage) -> Vec<(Rect, u32)> {
         let (accepted, _) = self.scan(gray, 0);
         grouped(&accepted, self.params.min_neighbors)
     }
@@ -116,7 +116,7 @@ impl FaceDetector {
     /// A face the cascade barely sees, one slightly sheared, rolled, blurred or resampled,
     /// gathers windows that fail only its last stages; false alarms do too, so near misses are
     /// candidates for a stricter judge, not detections.
-    pub fn detect_with_near_misses(&self, gray: &GrayImage) -> NearMisses {
+    pub(crate) fn detect_with_near_misses(&self, gray: &GrayImage) -> NearMisses {
         let (accepted, near) = self.scan(gray, self.params.stage_slack);
         let detected = grouped(&accepted, self.params.min_neighbors);
         let near_misses = if near.is_empty() {
@@ -151,18 +151,18 @@ impl FaceDetector {
 
 /// The boxes of [`FaceDetector::detect_with_near_misses`].
 #[derive(Debug, Clone, Default, PartialEq)]
-pub struct NearMisses {
+pub(crate) struct NearMisses {
     /// The detector's boxes with their neighbour counts, as
     /// [`FaceDetector::detect_with_neighbors`] gives them.
-    pub detected: Vec<(Rect, u32)>,
+    pub(crate) detected: Vec<(Rect, u32)>,
     /// Boxes that the windows the last stages rejected complete, with their neighbour counts
     /// (accepted and near-miss windows together).
-    pub near_misses: Vec<(Rect, u32)>,
+    pub(crate) near_misses: Vec<(Rect, u32)>,
 }
 
 /// The largest overlap (intersection over union) of a near miss with a detected box: a group
 /// that overlaps a detection more is that detection, enlarged by its near-miss windows.
-pub const NEAR_MISS_MAX_IOU: f64 = 0.3;
+pub(crate) const NEAR_MISS_MAX_IOU: f64 = 0.3;
 
 /// OpenCV's grouping of `raw` windows, as boxes in input pixels with their neighbour counts.
 fn grouped(raw: &[IRect], min_neighbors: u32) -> Vec<(Rect, u32)> {

@@ -37,7 +37,7 @@ pub const PATCH_SIZE: usize = 64;
 pub const TRANSLATIONS: usize = 4;
 
 /// Largest translation of a training crop, pixels of the 150-px normalised face, each axis: 8,
-/// about the run-time eye search window's reach ([`crate::locate::filters::EYE_SEARCH`], 14 x 12) less
+/// about the run-time eye search window's reach (`crate::locate::filters::EYE_SEARCH`, 14 x 12) less
 /// a margin, so the filters learn peaks where they will be looked for.
 pub const MAX_TRANSLATION: f64 = 8.0;
 

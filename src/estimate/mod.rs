@@ -8,7 +8,7 @@
 //! a head rolled by `θ` reads as a shear of about `tan θ` (web faces roll by 3.6° in the median,
 //! 0.06 of apparent shear).
 //!
-//! **Shear and roll** ([`shear_and_roll`]): the face seen in the image is `S(k) R(θ)` applied to an
+//! **Shear and roll** (`shear_and_roll`): the face seen in the image is `S(k) R(θ)` applied to an
 //! upright face, with `S(k)` the horizontal shear and `R(θ)` the head's roll. In the upright face
 //! the eye line `E` (right eye to left eye) and the face's axis `V` (eye midpoint down to a point
 //! on the midline: the nostrils' midpoint, the mouth) are perpendicular. `S(k)^-1 = S(-k)` maps the
@@ -26,13 +26,13 @@
 //! eyes at least 40 px apart, the hand-annotated points give a median apparent shear of 0.080
 //! with equation 5 (eye midpoint over the annotated nose), 0.059 with this model.
 //!
-//! **Yaw** ([`yaw_corrected`]): a head turned sideways moves each point by its depth times
+//! **Yaw** (`yaw_corrected`): a head turned sideways moves each point by its depth times
 //! `sin(yaw)`; the eyes and the mouth lie nearly in one plane, the nose stands out of it. Both axes
 //! then read `k` plus a yaw term proportional to their depth, `a` for the nose and `b < a` for the
 //! mouth, and the extrapolation `k_mouth + β (k_mouth - k_nose)` with `β = b / (a - b)` removes
 //! it. The nose point is the lower nose as the nose filter finds it (the nostrils when it was
 //! not searched). On located points a smaller `β` than the annotations' does better, because the
-//! extrapolation also amplifies the nose point's own error; see [`YAW_EXTRAPOLATION`] for how
+//! extrapolation also amplifies the nose point's own error; see `YAW_EXTRAPOLATION` for how
 //! `β` was measured.
 //!
 //! The points are taken in the input image's own pixels; a uniform rescale of the image scales
@@ -42,12 +42,12 @@ use crate::geometry::Point;
 
 /// The shortest eye-to-nose height (pixels) for which a side's estimate is used: below it a
 /// one-pixel error alone would move `k` by more than 0.2.
-pub const MIN_VERTICAL_SPAN: f64 = 5.0;
+pub(crate) const MIN_VERTICAL_SPAN: f64 = 5.0;
 
 /// `k` from one side of the face: the horizontal displacement of `lower` relative to `upper`
 /// divided by their vertical difference. `None` when `lower` is not at least
 /// [`MIN_VERTICAL_SPAN`] pixels below `upper`.
-pub fn shear_from_pair(upper: Point, lower: Point) -> Option<f64> {
+pub(crate) fn shear_from_pair(upper: Point, lower: Point) -> Option<f64> {
     let dy = lower.y - upper.y;
     (dy >= MIN_VERTICAL_SPAN && dy.is_finite() && (lower.x - upper.x).is_finite())
         .then(|| (lower.x - upper.x) / dy)
@@ -56,7 +56,7 @@ pub fn shear_from_pair(upper: Point, lower: Point) -> Option<f64> {
 /// Equation 5 on both sides of the face, averaged: the subject's right side
 /// (`right_eye` over `right_nose`) and left side. A side whose geometry is unusable
 /// (see [`shear_from_pair`]) is left out; `None` when neither side is usable.
-pub fn shear_from_sides(
+pub(crate) fn shear_from_sides(
     right_eye: Point,
     right_nose: Point,
     left_eye: Point,
@@ -82,28 +82,28 @@ pub fn shear_from_sides(
 /// (shear, roll) pairs make the eye line and the face's axis perpendicular, and the root
 /// nearest equation 5's answer (the one [`shear_and_roll`] takes) can be the wrong one (on a
 /// grid of |k| <= 0.8 and rolls up to 55°, 68 of 391 posed faces, all with |roll| >= 30°).
-pub const MAX_ROLL: f64 = 1.0;
+pub(crate) const MAX_ROLL: f64 = 1.0;
 
 /// How far the mouth's shear is extrapolated away from the nose tip's to cancel yaw:
 /// `k = k_mouth + YAW_EXTRAPOLATION (k_mouth - k_nose_tip)`. On hand-annotated points 0.5 cancels
 /// yaw best; located points amplify the nose point's error by the same factor, so the value is
 /// chosen on located points of faces no accuracy table measures (`scripts/yaw_factor.py` on
 /// the `--faces unseen` runs of the three filter types, steps of 0.1: 0.1 is best).
-pub const YAW_EXTRAPOLATION: f64 = 0.1;
+pub(crate) const YAW_EXTRAPOLATION: f64 = 0.1;
 
 /// [`YAW_EXTRAPOLATION`] for the nostrils' axis, used when the nose filter's point is missing
 /// (features located in a view the caller gave). The nostrils sit nearer the face's plane than
 /// the nose tip and are located less surely: chosen as above, the mouth's own axis (0) is best.
-pub const YAW_EXTRAPOLATION_NOSTRILS: f64 = 0.0;
+pub(crate) const YAW_EXTRAPOLATION_NOSTRILS: f64 = 0.0;
 
 /// The shear and roll of a face (see the module docs).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ShearRoll {
+pub(crate) struct ShearRoll {
     /// The horizontal shear `k`.
-    pub k: f64,
+    pub(crate) k: f64,
     /// The head's roll in the de-sheared face, radians, positive when the left eye (image right)
     /// is lower than the right eye (image y grows downwards).
-    pub roll: f64,
+    pub(crate) roll: f64,
 }
 
 /// Solves `S(k) R(θ)` from the eye line `eye_line` (subject's right eye to left eye, image
@@ -113,7 +113,7 @@ pub struct ShearRoll {
 /// eye line is shorter than that, a value is not finite, or the roll would exceed [`MAX_ROLL`].
 /// When noise leaves the quadratic without a real root, its vertex (the `k` that comes closest to
 /// making the two vectors perpendicular) is used.
-pub fn shear_and_roll(eye_line: Point, axis: Point) -> Option<ShearRoll> {
+pub(crate) fn shear_and_roll(eye_line: Point, axis: Point) -> Option<ShearRoll> {
     let (ex, ey, vx, vy) = (eye_line.x, eye_line.y, axis.x, axis.y);
     if ![ex, ey, vx, vy].iter().all(|v| v.is_finite())
         || vy < MIN_VERTICAL_SPAN
@@ -158,7 +158,7 @@ pub fn shear_and_roll(eye_line: Point, axis: Point) -> Option<ShearRoll> {
 /// one with the more upright head is taken (the other turns it further, as the two rolls
 /// `θ` with one `sin 2θ` do). Exact on points that fit either model; the row reading itself is
 /// off by a tenth of `c` at `c` = 0.3.
-pub fn vertical_from_row_reading(k: f64, roll: f64) -> Option<ShearRoll> {
+pub(crate) fn vertical_from_row_reading(k: f64, roll: f64) -> Option<ShearRoll> {
     let (s, co) = roll.sin_cos();
     let (m11, m12, m21, m22) = (co + k * s, k * co - s, s, co);
     // Columns of V(-c) M: (m11, m21 - c m11) and (m12, m22 - c m12); their dot product is 0.
@@ -190,7 +190,7 @@ pub fn vertical_from_row_reading(k: f64, roll: f64) -> Option<ShearRoll> {
 /// The yaw-corrected shear from a nose axis's and the mouth axis's estimates, extrapolating by
 /// `beta` ([`YAW_EXTRAPOLATION`] for the nose tip, [`YAW_EXTRAPOLATION_NOSTRILS`] for the
 /// nostrils).
-pub fn yaw_corrected(k_nose: f64, k_mouth: f64, beta: f64) -> f64 {
+pub(crate) fn yaw_corrected(k_nose: f64, k_mouth: f64, beta: f64) -> f64 {
     k_mouth + beta * (k_mouth - k_nose)
 }
 
@@ -199,10 +199,10 @@ pub fn yaw_corrected(k_nose: f64, k_mouth: f64, beta: f64) -> f64 {
 pub enum ShearModel {
     /// The paper's equation 5: each eye point over the nose point below it, both sides averaged.
     Equation5,
-    /// [`shear_and_roll`] on the eye line and the nose axis (eye midpoint to nostril midpoint).
+    /// `shear_and_roll` on the eye line and the nose axis (eye midpoint to nostril midpoint).
     ShearRoll,
-    /// [`shear_and_roll`] on the nose-tip axis (the nose filter's point; the nostrils' midpoint
-    /// when it was not searched) and on the mouth axis, combined by [`yaw_corrected`] (a nose
+    /// `shear_and_roll` on the nose-tip axis (the nose filter's point; the nostrils' midpoint
+    /// when it was not searched) and on the mouth axis, combined by `yaw_corrected` (a nose
     /// axis alone when there is no mouth point).
     #[default]
     ShearRollYaw,
@@ -210,41 +210,41 @@ pub enum ShearModel {
 
 /// The located points a shear estimate is made from, image pixels.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct FeatureGeometry {
+pub(crate) struct FeatureGeometry {
     /// Subject's right eye centre (image left).
-    pub right_eye: Point,
+    pub(crate) right_eye: Point,
     /// Subject's left eye centre (image right).
-    pub left_eye: Point,
+    pub(crate) left_eye: Point,
     /// Equation 5's points, subject's right side: the eye point and the nose point below it.
-    pub right_pair: (Point, Point),
+    pub(crate) right_pair: (Point, Point),
     /// Equation 5's points, subject's left side.
-    pub left_pair: (Point, Point),
+    pub(crate) left_pair: (Point, Point),
     /// The nostrils' midpoint.
-    pub nose: Point,
+    pub(crate) nose: Point,
     /// The mouth centre, if located.
-    pub mouth: Option<Point>,
+    pub(crate) mouth: Option<Point>,
     /// The lower nose as the nose filter found it, if it was searched.
-    pub nose_tip: Option<Point>,
+    pub(crate) nose_tip: Option<Point>,
 }
 
 /// A face's estimate.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct FaceEstimate {
+pub(crate) struct FaceEstimate {
     /// The shear.
-    pub k: f64,
+    pub(crate) k: f64,
     /// The roll (radians, see [`ShearRoll::roll`]) under that shear; 0 for
     /// [`ShearModel::Equation5`], which has no roll.
-    pub roll: f64,
+    pub(crate) roll: f64,
     /// The nose axis's own shear-and-roll estimate, if usable.
-    pub k_nose: Option<f64>,
+    pub(crate) k_nose: Option<f64>,
     /// The mouth axis's own shear-and-roll estimate, if usable.
-    pub k_mouth: Option<f64>,
+    pub(crate) k_mouth: Option<f64>,
     /// The nose-tip axis's own shear-and-roll estimate, if usable.
-    pub k_nose_tip: Option<f64>,
+    pub(crate) k_nose_tip: Option<f64>,
 }
 
 /// Estimates the shear of one face with `model`; `None` when the points do not allow it.
-pub fn estimate_face(points: &FeatureGeometry, model: ShearModel) -> Option<FaceEstimate> {
+pub(crate) fn estimate_face(points: &FeatureGeometry, model: ShearModel) -> Option<FaceEstimate> {
     let eye_line = Point::new(
         points.left_eye.x - points.right_eye.x,
         points.left_eye.y - points.right_eye.y,

@@ -3,7 +3,7 @@
 //!
 //! For each training patch `f_i` (normalised with [`normalize_patch`](super::normalize_patch), as UMACE's) with its
 //! feature `(dx, dy)` from the patch centre, the desired correlation plane `g_i` is a Gaussian
-//! peak at `(dx, dy)` ([`desired_output`](super::desired_output), [`DESIRED_SIGMA`]). The *exact filter* is the one
+//! peak at `(dx, dy)` ([`desired_output_into`](super::desired_output_into), [`DESIRED_SIGMA`]). The *exact filter* is the one
 //! that maps `f_i` to `g_i` exactly. In this crate's convention `c = IDFT(X . conj(H))`
 //! ([`super::Correlator`]), so `conj(H_i) = G_i / F_i`, i.e.
 //!
@@ -25,10 +25,10 @@ use super::{Filter, SynthesisOptions, DESIRED_SIGMA};
 /// Default per-patch floor, a fraction of the patch's mean power: 0.1. A single exact filter is
 /// far noisier than MOSSE's pooled quotient, so it takes a larger floor than UMACE's and MOSSE's
 /// 0.01 (Bolme et al. also regularise ASEF's exact filters). Not tuned on the evaluation set.
-pub const REGULARIZATION: f64 = 0.1;
+pub(crate) const REGULARIZATION: f64 = 0.1;
 
 /// Default ASEF settings: [`DESIRED_SIGMA`], [`REGULARIZATION`], windowed.
-pub const DEFAULT_OPTIONS: SynthesisOptions = SynthesisOptions {
+pub(crate) const DEFAULT_OPTIONS: SynthesisOptions = SynthesisOptions {
     sigma: DESIRED_SIGMA,
     regularization: REGULARIZATION,
     window: true,
@@ -36,7 +36,7 @@ pub const DEFAULT_OPTIONS: SynthesisOptions = SynthesisOptions {
 
 /// Accumulates exact filters and averages them (sums in `f64`, patches in the order given, so
 /// the same patches give the same bits).
-pub struct AsefTrainer {
+pub(crate) struct AsefTrainer {
     options: SynthesisOptions,
     spectra: TrainingSpectra,
     sum_filter: Vec<(f64, f64)>,
@@ -55,12 +55,12 @@ impl std::fmt::Debug for AsefTrainer {
 
 impl AsefTrainer {
     /// A trainer for `size x size` patches with the [`DEFAULT_OPTIONS`].
-    pub fn new(size: usize) -> Self {
+    pub(crate) fn new(size: usize) -> Self {
         Self::with_options(size, DEFAULT_OPTIONS)
     }
 
     /// A trainer with explicit settings.
-    pub fn with_options(size: usize, options: SynthesisOptions) -> Self {
+    pub(crate) fn with_options(size: usize, options: SynthesisOptions) -> Self {
         Self {
             options,
             spectra: TrainingSpectra::new(size),
@@ -70,7 +70,8 @@ impl AsefTrainer {
     }
 
     /// Number of patches added so far.
-    pub fn count(&self) -> u32 {
+    #[cfg(test)]
+    pub(crate) fn count(&self) -> u32 {
         self.count
     }
 
@@ -80,7 +81,7 @@ impl AsefTrainer {
     ///
     /// # Panics
     /// If `patch.len() != size * size` (a programming error, not a data error).
-    pub fn add(&mut self, patch: &[f32], dx: f64, dy: f64) {
+    pub(crate) fn add(&mut self, patch: &[f32], dx: f64, dy: f64) {
         self.spectra.load(patch, dx, dy, self.options.sigma);
         let power = |c: &Complex32| {
             let (re, im) = (f64::from(c.re), f64::from(c.im));
@@ -109,7 +110,7 @@ impl AsefTrainer {
     }
 
     /// The average exact filter, windowed if so configured. `None` when no patch was added.
-    pub fn finish(self) -> Option<Filter> {
+    pub(crate) fn finish(self) -> Option<Filter> {
         if self.count == 0 {
             return None;
         }

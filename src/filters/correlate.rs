@@ -44,6 +44,7 @@ const NEIGHBOURHOOD: [(isize, isize); 24] = [
 
 /// A correlation peak.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct Peak {
     /// Displacement of the feature from the patch centre, in pixels, sub-pixel (parabola fit).
     pub dx: f64,
@@ -69,7 +70,7 @@ impl Peak {
 ///
 /// Holds the forward and inverse FFT plans and the work buffers, so one `Correlator` per thread
 /// serves any number of calls without allocating.
-pub struct Correlator {
+pub(crate) struct Correlator {
     size: usize,
     forward: Arc<dyn Fft<f32>>,
     inverse: Arc<dyn Fft<f32>>,
@@ -89,7 +90,7 @@ impl std::fmt::Debug for Correlator {
 
 impl Correlator {
     /// A correlator for `size x size` patches (plans built here, once).
-    pub fn new(size: usize) -> Self {
+    pub(crate) fn new(size: usize) -> Self {
         let mut planner = FftPlanner::<f32>::new();
         let forward = planner.plan_fft_forward(size);
         let inverse = planner.plan_fft_inverse(size);
@@ -108,26 +109,29 @@ impl Correlator {
     }
 
     /// Side length this correlator works on.
-    pub fn size(&self) -> usize {
+    pub(crate) fn size(&self) -> usize {
         self.size
     }
 
     /// The 2-D DFT of a real `size x size` patch, row-major.
-    pub fn spectrum(&mut self, patch: &[f32]) -> Vec<Complex32> {
+    #[cfg(any(test, feature = "dev"))]
+    pub(crate) fn spectrum(&mut self, patch: &[f32]) -> Vec<Complex32> {
         self.load_real(patch);
         self.fft2(true);
         self.buffer.clone()
     }
 
     /// The 2-D DFT of a real patch written into `out` (no allocation).
-    pub fn spectrum_into(&mut self, patch: &[f32], out: &mut [Complex32]) {
+    #[cfg(any(test, feature = "dev"))]
+    pub(crate) fn spectrum_into(&mut self, patch: &[f32], out: &mut [Complex32]) {
         self.load_real(patch);
         self.fft2(true);
         out.copy_from_slice(&self.buffer);
     }
 
     /// The real part of the inverse 2-D DFT of `spectrum`, scaled by 1 / size^2.
-    pub fn inverse_real(&mut self, spectrum: &[Complex32]) -> Vec<f32> {
+    #[cfg(any(test, feature = "dev"))]
+    pub(crate) fn inverse_real(&mut self, spectrum: &[Complex32]) -> Vec<f32> {
         self.buffer.copy_from_slice(spectrum);
         self.fft2(false);
         let norm = 1.0 / (self.size * self.size) as f32;
@@ -139,7 +143,7 @@ impl Correlator {
     ///
     /// Restricting the peak to a search window keeps the other eye, the brows or the mouth, which
     /// also correlate, from winning when they fall inside the patch.
-    pub fn correlate(
+    pub(crate) fn correlate(
         &mut self,
         patch: &[f32],
         filter: &Filter,
@@ -152,7 +156,7 @@ impl Correlator {
 
     /// Correlates `patch` with `filter` and keeps the correlation plane for [`Self::value`],
     /// [`Self::peak_in_window`] and [`Self::peak_at`].
-    pub fn compute_plane(&mut self, patch: &[f32], filter: &Filter) {
+    pub(crate) fn compute_plane(&mut self, patch: &[f32], filter: &Filter) {
         debug_assert_eq!(filter.size, self.size);
         self.load_real(patch);
         self.fft2(true);
@@ -167,7 +171,7 @@ impl Correlator {
     }
 
     /// The highest value of the last plane within `max_dx`, `max_dy` of the centre, refined.
-    pub fn peak_in_window(&self, max_dx: usize, max_dy: usize) -> Peak {
+    pub(crate) fn peak_in_window(&self, max_dx: usize, max_dy: usize) -> Peak {
         let half = (self.size / 2) as isize;
         let max_dx = (max_dx as isize).min(half - 1);
         let max_dy = (max_dy as isize).min(half - 1);
@@ -188,7 +192,12 @@ impl Correlator {
     /// first: [`Self::peak_in_window`]'s peak, even on the window's edge, where it is the flank
     /// of a peak just beyond), then the local maxima (each the highest of its 5 x 5
     /// neighbourhood).
-    pub fn local_maxima_in_window(&self, max_dx: usize, max_dy: usize, count: usize) -> Vec<Peak> {
+    pub(crate) fn local_maxima_in_window(
+        &self,
+        max_dx: usize,
+        max_dy: usize,
+        count: usize,
+    ) -> Vec<Peak> {
         let half = (self.size / 2) as isize;
         let max_dx = (max_dx as isize).min(half - 1);
         let max_dy = (max_dy as isize).min(half - 1);
@@ -247,7 +256,7 @@ impl Correlator {
 
     /// The last plane's peak at integer displacement `(dx, dy)`, refined to sub-pixel precision
     /// by a parabola through the neighbours, with its peak-to-sidelobe ratio.
-    pub fn peak_at(&self, dx: isize, dy: isize) -> Peak {
+    pub(crate) fn peak_at(&self, dx: isize, dy: isize) -> Peak {
         self.refined(dx, dy, self.psr(self.value(dx, dy), dx, dy))
     }
 
@@ -265,7 +274,7 @@ impl Correlator {
     }
 
     /// The last plane's value at displacement `(dx, dy)` from the centre, indices modulo the size.
-    pub fn value(&self, dx: isize, dy: isize) -> f32 {
+    pub(crate) fn value(&self, dx: isize, dy: isize) -> f32 {
         let n = self.size as isize;
         let x = wrap(dx, n) as usize;
         let y = wrap(dy, n) as usize;

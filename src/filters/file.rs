@@ -31,7 +31,7 @@ use crate::error::{Error, Result};
 
 const MAGIC: &[u8; 8] = b"UNSHEARF";
 /// The file-format version this build writes (it also reads version 1, as UMACE).
-pub const FORMAT_VERSION: u32 = 2;
+pub(crate) const FORMAT_VERSION: u32 = 2;
 const MIN_SIZE: usize = 8;
 /// Filters in a file without a mouth filter: right eye, left eye, nose.
 const FILTER_COUNT_NO_MOUTH: u32 = 3;
@@ -48,6 +48,7 @@ static EMBEDDED_MOSSE: &[u8] = include_bytes!("../../models/eye_filters_mosse.bi
 /// The filter set: one filter for each eye, as the paper, one for the nose and (optionally) one
 /// for the mouth.
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub struct EyeFilters {
     /// Filter for the subject's right eye (on the image's left).
     pub right_eye: Filter,

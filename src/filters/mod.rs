@@ -1,30 +1,33 @@
-//! Correlation filters in the frequency domain: three synthesis methods — UMACE ([`umace`]),
-//! ASEF ([`asef`]) and MOSSE ([`mosse`]) — one [`FilterTrainer`] front for all three
-//! ([`trainer`]), the versioned filter file ([`mod@file`]), and FFT correlation with peak and
-//! peak-to-sidelobe ratio ([`correlate`]).
+//! Correlation filters in the frequency domain: three synthesis methods — UMACE (`umace`),
+//! ASEF (`asef`) and MOSSE (`mosse`) — one `FilterTrainer` front for all three
+//! (`trainer`), the versioned filter file (`mod@file`), and FFT correlation with peak and
+//! peak-to-sidelobe ratio (`correlate`).
 //!
 //! All filters here are square, `size x size` (64 for the eye filters, as the paper), stored as
 //! their 2-D DFT in row-major order, and applied to a patch `x` as `c = IDFT(X . conj(H))`. A filter
 //! trained on patches with the feature at the patch centre therefore peaks at
 //! `c[0, 0]` for a centred feature, and at `c[dy, dx]` (indices modulo `size`) for a feature displaced
 //! by `(dx, dy)` from the centre. ASEF and MOSSE are trained to give exactly that plane, a
-//! Gaussian peak at `(dx, dy)` ([`desired_output`]); UMACE gives it by construction (its
+//! Gaussian peak at `(dx, dy)` (`desired_output_into`); UMACE gives it by construction (its
 //! filter is a whitened average of centred features). The runtime code is the same for all.
 
-pub mod asef;
-pub mod correlate;
-pub mod file;
-pub mod mosse;
+#[cfg(any(test, feature = "dev"))]
+pub(crate) mod asef;
+pub(crate) mod correlate;
+mod file;
+#[cfg(any(test, feature = "dev"))]
+pub(crate) mod mosse;
 mod spectra;
-pub mod trainer;
-pub mod umace;
+#[cfg(any(test, feature = "dev"))]
+pub(crate) mod trainer;
+#[cfg(any(test, feature = "dev"))]
+pub(crate) mod umace;
 
-pub use asef::AsefTrainer;
-pub use correlate::{Correlator, Peak};
+pub(crate) use correlate::{Correlator, Peak};
 pub use file::EyeFilters;
-pub use mosse::MosseTrainer;
-pub use trainer::FilterTrainer;
-pub use umace::{normalize_patch, UmaceTrainer};
+pub(crate) use spectra::normalize_patch;
+#[cfg(feature = "dev")]
+pub(crate) use trainer::FilterTrainer;
 
 use rustfft::num_complex::Complex32;
 
@@ -36,7 +39,7 @@ pub struct Filter {
     /// Side length in pixels.
     pub size: usize,
     /// `H[v * size + u]`, the 2-D DFT of the spatial filter.
-    pub spectrum: Vec<Complex32>,
+    pub(crate) spectrum: Vec<Complex32>,
     /// How many training patches made it (0 if unknown).
     pub training_count: u32,
 }
@@ -74,7 +77,7 @@ impl FilterType {
     }
 
     /// The code stored in the filter file (1, 2, 3).
-    pub fn code(self) -> u32 {
+    pub(crate) fn code(self) -> u32 {
         match self {
             Self::Umace => 1,
             Self::Asef => 2,
@@ -83,7 +86,7 @@ impl FilterType {
     }
 
     /// The type of a file code, or [`Error::UnknownFilterType`].
-    pub fn from_code(code: u32) -> Result<Self> {
+    pub(crate) fn from_code(code: u32) -> Result<Self> {
         Self::ALL
             .into_iter()
             .find(|t| t.code() == code)
@@ -92,7 +95,8 @@ impl FilterType {
 
     /// Whether training should show the type translated crops with the feature off-centre
     /// (ASEF and MOSSE learn where the peak goes; UMACE assumes a centred feature).
-    pub fn learns_localisation(self) -> bool {
+    #[cfg(any(test, feature = "dev"))]
+    pub(crate) fn learns_localisation(self) -> bool {
         !matches!(self, Self::Umace)
     }
 }
@@ -125,38 +129,42 @@ impl std::str::FromStr for FilterType {
 }
 
 /// Standard deviation, in pixels, of the Gaussian peak ASEF and MOSSE are trained to output
-/// ([`desired_output`]): 2 px, as Bolme et al. use for eyes in 64-128 px face crops; narrow
+/// ([`desired_output_into`]): 2 px, as Bolme et al. use for eyes in 64-128 px face crops; narrow
 /// enough for a sharp, well-placed peak, wide enough that a half-pixel annotation error does not
 /// turn the target into a different function.
-pub const DESIRED_SIGMA: f64 = 2.0;
+#[cfg(any(test, feature = "dev"))]
+pub(crate) const DESIRED_SIGMA: f64 = 2.0;
 
 /// Settings of the ASEF and MOSSE trainers.
+#[cfg(any(test, feature = "dev"))]
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SynthesisOptions {
+pub(crate) struct SynthesisOptions {
     /// Width of the desired output's Gaussian peak, pixels.
-    pub sigma: f64,
+    pub(crate) sigma: f64,
     /// Floor added to the power spectrum, as a fraction of its mean (see each trainer).
-    pub regularization: f64,
+    pub(crate) regularization: f64,
     /// Multiply the synthesised spatial filter by a Hamming window centred on the patch centre,
-    /// as UMACE does ([`umace::hamming_windowed`]).
-    pub window: bool,
+    /// as UMACE does ([`spectra::hamming_windowed`]).
+    pub(crate) window: bool,
 }
 
-/// The correlation plane a filter should give for a patch whose feature lies `(dx, dy)` pixels
-/// from the patch centre, in [`Correlator`]'s convention: a Gaussian of standard deviation
-/// `sigma` and height 1 centred on plane index `(dx, dy)`, wrapping modulo `size` (index
-/// `size - 1` is displacement -1). Row-major, `size x size`.
-pub fn desired_output(size: usize, dx: f64, dy: f64, sigma: f64) -> Vec<f32> {
+/// [`desired_output_into`] into a new plane.
+#[cfg(test)]
+pub(crate) fn desired_output(size: usize, dx: f64, dy: f64, sigma: f64) -> Vec<f32> {
     let mut out = vec![0f32; size * size];
     desired_output_into(size, dx, dy, sigma, &mut out);
     out
 }
 
-/// [`desired_output`] into `out`, without allocating.
+/// The correlation plane a filter should give for a patch whose feature lies `(dx, dy)` pixels
+/// from the patch centre, in [`Correlator`]'s convention: a Gaussian of standard deviation
+/// `sigma` and height 1 centred on plane index `(dx, dy)`, wrapping modulo `size` (index
+/// `size - 1` is displacement -1). Row-major, `size x size`, written into `out`.
 ///
 /// # Panics
 /// If `out` holds fewer than `size * size` values (a programming error).
-pub fn desired_output_into(size: usize, dx: f64, dy: f64, sigma: f64, out: &mut [f32]) {
+#[cfg(any(test, feature = "dev"))]
+pub(crate) fn desired_output_into(size: usize, dx: f64, dy: f64, sigma: f64, out: &mut [f32]) {
     let half = (size / 2) as isize;
     let n = size as isize;
     // Signed displacement of plane index i: 0..half-1 are >= 0, the rest negative.
@@ -186,7 +194,8 @@ pub fn desired_output_into(size: usize, dx: f64, dy: f64, sigma: f64, out: &mut 
 
 /// The normalised (Pearson) correlation of two equally long sample vectors, in [-1, 1]; 0 when
 /// either is constant.
-pub fn zero_mean_correlation(a: &[f32], b: &[f32]) -> f64 {
+#[cfg(test)]
+pub(crate) fn zero_mean_correlation(a: &[f32], b: &[f32]) -> f64 {
     let n = a.len().min(b.len()).max(1) as f64;
     let mean_a = a.iter().map(|&x| f64::from(x)).sum::<f64>() / n;
     let mean_b = b.iter().map(|&x| f64::from(x)).sum::<f64>() / n;
@@ -268,14 +277,14 @@ pub(crate) mod test_support {
     use crate::rng::SplitMix64;
 
     /// White noise in [-1, 1), deterministic in `seed`.
-    pub fn random_patch(n: usize, seed: u64) -> Vec<f32> {
+    pub(crate) fn random_patch(n: usize, seed: u64) -> Vec<f32> {
         let mut rng = SplitMix64::new(seed);
         (0..n * n).map(|_| rng.symmetric(1.0) as f32).collect()
     }
 
     /// An "eye": a dark disc with a light ring, `(dx, dy)` from the patch centre, on a
     /// background of a faint gradient, three fainter random blobs and noise (all from `seed`).
-    pub fn blob_scene(n: usize, dx: f64, dy: f64, seed: u64) -> Vec<f32> {
+    pub(crate) fn blob_scene(n: usize, dx: f64, dy: f64, seed: u64) -> Vec<f32> {
         let mut rng = SplitMix64::new(seed ^ 0x5eed);
         let c = (n / 2) as f64;
         let clutter: Vec<(f64, f64)> = (0..3)

@@ -3,7 +3,7 @@
 //!
 //! MOSSE finds the one filter whose outputs on all training patches are closest, in summed
 //! squared error, to the desired planes `g_i` (a Gaussian peak at each patch's feature,
-//! [`desired_output`](super::desired_output), [`DESIRED_SIGMA`]). In this crate's convention `c = IDFT(X . conj(H))`
+//! [`desired_output_into`](super::desired_output_into), [`DESIRED_SIGMA`]). In this crate's convention `c = IDFT(X . conj(H))`
 //! ([`super::Correlator`]) the minimiser is, frequency by frequency,
 //!
 //! `H = sum_i conj(G_i) F_i / (sum_i |F_i|^2 + eps)`
@@ -24,10 +24,10 @@ use super::{Filter, SynthesisOptions, DESIRED_SIGMA};
 
 /// Default floor, a fraction of the mean summed power: 0.01, UMACE's. Not tuned on the
 /// evaluation set.
-pub const REGULARIZATION: f64 = 1e-2;
+pub(crate) const REGULARIZATION: f64 = 1e-2;
 
 /// Default MOSSE settings: [`DESIRED_SIGMA`], [`REGULARIZATION`], windowed.
-pub const DEFAULT_OPTIONS: SynthesisOptions = SynthesisOptions {
+pub(crate) const DEFAULT_OPTIONS: SynthesisOptions = SynthesisOptions {
     sigma: DESIRED_SIGMA,
     regularization: REGULARIZATION,
     window: true,
@@ -35,7 +35,7 @@ pub const DEFAULT_OPTIONS: SynthesisOptions = SynthesisOptions {
 
 /// Accumulates the MOSSE numerator and denominator (in `f64`, patches in the order given, so the
 /// same patches give the same bits).
-pub struct MosseTrainer {
+pub(crate) struct MosseTrainer {
     options: SynthesisOptions,
     spectra: TrainingSpectra,
     numerator: Vec<(f64, f64)>,
@@ -55,12 +55,12 @@ impl std::fmt::Debug for MosseTrainer {
 
 impl MosseTrainer {
     /// A trainer for `size x size` patches with the [`DEFAULT_OPTIONS`].
-    pub fn new(size: usize) -> Self {
+    pub(crate) fn new(size: usize) -> Self {
         Self::with_options(size, DEFAULT_OPTIONS)
     }
 
     /// A trainer with explicit settings.
-    pub fn with_options(size: usize, options: SynthesisOptions) -> Self {
+    pub(crate) fn with_options(size: usize, options: SynthesisOptions) -> Self {
         Self {
             options,
             spectra: TrainingSpectra::new(size),
@@ -71,7 +71,8 @@ impl MosseTrainer {
     }
 
     /// Number of patches added so far.
-    pub fn count(&self) -> u32 {
+    #[cfg(test)]
+    pub(crate) fn count(&self) -> u32 {
         self.count
     }
 
@@ -80,7 +81,7 @@ impl MosseTrainer {
     ///
     /// # Panics
     /// If `patch.len() != size * size` (a programming error, not a data error).
-    pub fn add(&mut self, patch: &[f32], dx: f64, dy: f64) {
+    pub(crate) fn add(&mut self, patch: &[f32], dx: f64, dy: f64) {
         self.spectra.load(patch, dx, dy, self.options.sigma);
         for (((num, den), f), g) in self
             .numerator
@@ -100,7 +101,7 @@ impl MosseTrainer {
     }
 
     /// The MOSSE filter, windowed if so configured. `None` when no patch was added.
-    pub fn finish(self) -> Option<Filter> {
+    pub(crate) fn finish(self) -> Option<Filter> {
         if self.count == 0 {
             return None;
         }

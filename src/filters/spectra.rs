@@ -2,12 +2,16 @@
 //! with the spectrum of its desired output), into buffers reused from patch to patch, and the finished
 //! spectrum windowed into a [`Filter`].
 
+#[cfg(any(test, feature = "dev"))]
 use rustfft::num_complex::Complex32;
 
+#[cfg(any(test, feature = "dev"))]
 use super::correlate::Correlator;
+#[cfg(any(test, feature = "dev"))]
 use super::{desired_output_into, Filter};
 
 /// FFT plans and per-patch buffers for a trainer of `size x size` patches.
+#[cfg(any(test, feature = "dev"))]
 pub(crate) struct TrainingSpectra {
     size: usize,
     correlator: Correlator,
@@ -19,6 +23,7 @@ pub(crate) struct TrainingSpectra {
     pub(crate) target_spectrum: Vec<Complex32>,
 }
 
+#[cfg(any(test, feature = "dev"))]
 impl TrainingSpectra {
     pub(crate) fn new(size: usize) -> Self {
         Self {
@@ -86,7 +91,7 @@ impl TrainingSpectra {
 
 /// Normalises a patch in place to zero mean and unit energy (sum of squares 1).
 /// A constant patch becomes all zeros.
-pub fn normalize_patch(patch: &mut [f32]) {
+pub(crate) fn normalize_patch(patch: &mut [f32]) {
     if patch.is_empty() {
         return;
     }
@@ -106,7 +111,11 @@ pub fn normalize_patch(patch: &mut [f32]) {
 /// The spectrum of `IDFT(spectrum)` (real part) multiplied by a 2-D periodic Hamming window
 /// centred on the patch centre: the spatial windowing of the module docs, shared by the ASEF and
 /// MOSSE trainers. `correlator` must be of the spectrum's size.
-pub fn hamming_windowed(correlator: &mut Correlator, spectrum: &[Complex32]) -> Vec<Complex32> {
+#[cfg(any(test, feature = "dev"))]
+pub(crate) fn hamming_windowed(
+    correlator: &mut Correlator,
+    spectrum: &[Complex32],
+) -> Vec<Complex32> {
     let n = correlator.size();
     let mut spatial = correlator.inverse_real(spectrum);
     let window = hamming(n);
@@ -119,7 +128,8 @@ pub fn hamming_windowed(correlator: &mut Correlator, spectrum: &[Complex32]) -> 
 }
 
 /// Periodic Hamming window of length `n`, centred on sample `n / 2` (the patch centre).
-pub fn hamming(n: usize) -> Vec<f32> {
+#[cfg(any(test, feature = "dev"))]
+pub(crate) fn hamming(n: usize) -> Vec<f32> {
     (0..n)
         .map(|i| (0.54 - 0.46 * (2.0 * std::f64::consts::PI * i as f64 / n as f64).cos()) as f32)
         .collect()

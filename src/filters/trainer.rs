@@ -1,11 +1,14 @@
 //! One front for the three trainers, so that training code picks the synthesis by
 //! [`FilterType`] and stays the same otherwise.
 
-use super::{AsefTrainer, Filter, FilterType, MosseTrainer, UmaceTrainer};
+use super::asef::AsefTrainer;
+use super::mosse::MosseTrainer;
+use super::umace::UmaceTrainer;
+use super::{Filter, FilterType};
 
 /// A UMACE, ASEF or MOSSE trainer with its default settings.
 #[derive(Debug)]
-pub enum FilterTrainer {
+pub(crate) enum FilterTrainer {
     /// [`UmaceTrainer`].
     Umace(UmaceTrainer),
     /// [`AsefTrainer`].
@@ -16,7 +19,7 @@ pub enum FilterTrainer {
 
 impl FilterTrainer {
     /// A trainer of type `kind` for `size x size` patches.
-    pub fn new(kind: FilterType, size: usize) -> Self {
+    pub(crate) fn new(kind: FilterType, size: usize) -> Self {
         match kind {
             FilterType::Umace => Self::Umace(UmaceTrainer::new(size)),
             FilterType::Asef => Self::Asef(AsefTrainer::new(size)),
@@ -25,7 +28,8 @@ impl FilterTrainer {
     }
 
     /// The type this trainer makes.
-    pub fn kind(&self) -> FilterType {
+    #[cfg(test)]
+    pub(crate) fn kind(&self) -> FilterType {
         match self {
             Self::Umace(_) => FilterType::Umace,
             Self::Asef(_) => FilterType::Asef,
@@ -34,7 +38,8 @@ impl FilterTrainer {
     }
 
     /// Patches added so far.
-    pub fn count(&self) -> u32 {
+    #[cfg(test)]
+    pub(crate) fn count(&self) -> u32 {
         match self {
             Self::Umace(t) => t.count(),
             Self::Asef(t) => t.count(),
@@ -48,7 +53,7 @@ impl FilterTrainer {
     ///
     /// # Panics
     /// If the patch is not `size x size` (a programming error).
-    pub fn add(&mut self, patch: &[f32], dx: f64, dy: f64) {
+    pub(crate) fn add(&mut self, patch: &[f32], dx: f64, dy: f64) {
         match self {
             Self::Umace(t) => t.add(patch),
             Self::Asef(t) => t.add(patch, dx, dy),
@@ -57,7 +62,7 @@ impl FilterTrainer {
     }
 
     /// The synthesised filter, `None` when no patch was added.
-    pub fn finish(self) -> Option<Filter> {
+    pub(crate) fn finish(self) -> Option<Filter> {
         match self {
             Self::Umace(t) => t.finish(),
             Self::Asef(t) => t.finish(),

@@ -20,19 +20,18 @@
 use rustfft::num_complex::Complex32;
 
 use super::spectra::TrainingSpectra;
-pub use super::spectra::{hamming, hamming_windowed, normalize_patch};
 use super::Filter;
 
 /// Floor added to the mean power spectrum, as a fraction of its mean (see the module docs): 1% of
 /// the average power, enough to keep the vanishing DC and high-frequency bins from dominating the
 /// filter. Not tuned: a sweep against the eye-localisation rate is future work.
-pub const REGULARIZATION: f64 = 1e-2;
+pub(crate) const REGULARIZATION: f64 = 1e-2;
 
 /// Accumulates training patches and synthesises a UMACE filter from them.
 ///
 /// Sums are kept in `f64` and patches are added in the order given, so the same patches give the
 /// same filter bits on every run.
-pub struct UmaceTrainer {
+pub(crate) struct UmaceTrainer {
     spectra: TrainingSpectra,
     sum_spectrum: Vec<(f64, f64)>,
     sum_power: Vec<f64>,
@@ -50,7 +49,7 @@ impl std::fmt::Debug for UmaceTrainer {
 
 impl UmaceTrainer {
     /// A trainer for `size x size` patches.
-    pub fn new(size: usize) -> Self {
+    pub(crate) fn new(size: usize) -> Self {
         Self {
             spectra: TrainingSpectra::new(size),
             sum_spectrum: vec![(0.0, 0.0); size * size],
@@ -60,7 +59,8 @@ impl UmaceTrainer {
     }
 
     /// Number of patches added so far.
-    pub fn count(&self) -> u32 {
+    #[cfg(test)]
+    pub(crate) fn count(&self) -> u32 {
         self.count
     }
 
@@ -69,7 +69,7 @@ impl UmaceTrainer {
     ///
     /// # Panics
     /// If `patch.len() != size * size` (a programming error, not a data error).
-    pub fn add(&mut self, patch: &[f32]) {
+    pub(crate) fn add(&mut self, patch: &[f32]) {
         self.spectra.load_patch(patch);
         for ((s, p), x) in self
             .sum_spectrum
@@ -87,7 +87,7 @@ impl UmaceTrainer {
 
     /// Synthesises the filter `h = (D + floor)^-1 m`, Hamming-windowed in space (module docs).
     /// Returns `None` when no patch was added.
-    pub fn finish(self) -> Option<Filter> {
+    pub(crate) fn finish(self) -> Option<Filter> {
         if self.count == 0 {
             return None;
         }
@@ -115,6 +115,8 @@ impl UmaceTrainer {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::filters::normalize_patch;
+    use crate::filters::spectra::hamming;
     use crate::filters::Correlator;
 
     /// A textured "eye": a dark blob with a ring and a gradient, deterministic.

@@ -16,7 +16,7 @@
 //! The nose needs one step the paper does not have: under strong shear the nose slides sideways
 //! out of a nostril crop placed for an upright face, so a third filter, trained on the whole
 //! lower nose, first finds the nose in a wide window and measures the shear from it, iterating in
-//! the de-sheared face ([`FeatureLocator::iterated_nose_shear`]); the nostril crops are then cut
+//! the de-sheared face (`FeatureLocator::iterated_nose`); the nostril crops are then cut
 //! from the face de-sheared by that estimate.
 //!
 //! Every geometric constant below says its unit (normalised-face pixels, face box 150 px wide, or
@@ -30,7 +30,7 @@ use crate::geometry::{Point, Rect};
 use crate::resample::{bilinear_clamped, resample, resample_rows};
 
 /// Width of the normalised face, pixels (the paper's 150).
-pub const FACE_WIDTH: f64 = 150.0;
+pub(crate) const FACE_WIDTH: f64 = 150.0;
 
 /// Where each nostril is searched, relative to its eye, in eye distances: inwards (towards the
 /// nose) and downwards. From the dlib 68-point markup (43 faces, points 32 and 34 against the eye
@@ -45,14 +45,14 @@ pub(crate) const NOSTRIL_SEARCH: (f64, f64) = (0.12, 0.18);
 /// Where the nose filter is searched: below the eyes' midpoint by this many eye distances.
 /// Caltech development faces: the annotated nose point lies a median 0.29 box widths below the eye
 /// line, 0.76 eye distances.
-pub const NOSE_BELOW_EYES: f64 = 0.76;
+pub(crate) const NOSE_BELOW_EYES: f64 = 0.76;
 /// Half-size (eye distances) of the nose search window: sideways it must follow the nose under
 /// shear (`k * 0.76` eye distances: 0.45 covers |k| = 0.6), vertically nose length and pitch.
 pub(crate) const NOSE_SEARCH: (f64, f64) = (0.45, 0.15);
 /// Where the mouth filter is searched: below the eyes' midpoint by this many eye distances, in the
 /// face de-sheared by the nose's estimate. Caltech development faces (eye distance >= 20 px): the
 /// annotated mouth centre lies a median 1.10 eye distances below the eye line (std 0.15).
-pub const MOUTH_BELOW_EYES: f64 = 1.10;
+pub(crate) const MOUTH_BELOW_EYES: f64 = 1.10;
 /// Half-size (eye distances) of the mouth search window: sideways the residual shear after the
 /// nose's estimate and the mouth's own spread (std 0.08), vertically its spread (std 0.15;
 /// 5th-95th percentile 0.90-1.32).
@@ -72,7 +72,7 @@ pub(crate) const MOUTH_SEARCH: (f64, f64) = (0.15, 0.25);
 /// is already de-sheared by an estimate: the residual is small, and a narrower window keeps the
 /// peak from jumping to the mouth corners or a cheek.
 pub(crate) const NOSE_RESIDUAL_SEARCH: f64 = 0.25;
-/// Most passes of [`FeatureLocator::iterated_nose_shear`]. Each pass costs one 64x64
+/// Most passes of `FeatureLocator::iterated_nose`. Each pass costs one 64x64
 /// correlation (about 40 us).
 pub(crate) const NOSE_ITERATIONS: usize = 8;
 /// The largest shear the nose iteration will move to. Rolling-shutter skew of a panning camera
@@ -116,7 +116,7 @@ const _: () = assert!(
 );
 
 /// What the eye-pair search scores each candidate pair by, in the order of
-/// [`EyePair::features`] and [`EYE_PAIR_WEIGHTS`] (normalised-face measures, distances as
+/// [`EyePair::features`] and `EYE_PAIR_WEIGHTS` (normalised-face measures, distances as
 /// fractions of the eye distance the face box predicts):
 /// * `right_height`, `left_height`: each peak's correlation value over its eye's highest;
 /// * `right_psr`, `left_psr`: each peak's peak-to-sidelobe ratio, over 10;
@@ -151,7 +151,7 @@ pub const EYE_PAIR_FEATURES: [&str; 10] = [
 /// `src/fitted.rs`, which names the commands and the fit's cross-validated accuracy. The fit
 /// replaced a hand-set score (the two peak heights, less 5 x the squared scale error, plus 0.5 x
 /// the symmetry), which chose the right pair slightly less often.
-pub const EYE_PAIR_WEIGHTS: [f64; EYE_PAIR_FEATURES.len()] = crate::fitted::EYE_PAIR_WEIGHTS;
+pub(crate) const EYE_PAIR_WEIGHTS: [f64; EYE_PAIR_FEATURES.len()] = crate::fitted::EYE_PAIR_WEIGHTS;
 
 /// Side of the patches compared for the pair's symmetry (pixels of the 150-px face): 24, about
 /// the eye and its lids (the eye distance is about 57).
@@ -159,7 +159,7 @@ pub(crate) const EYE_SYMMETRY_PATCH: usize = 24;
 
 /// Half-size of the eye search window (pixels of the normalised face). The detector's eye
 /// positions spread by 3.7-5.3 px (1 std) at 150 px; 14 px is about 3 std.
-pub const EYE_SEARCH: (usize, usize) = (14, 12);
+pub(crate) const EYE_SEARCH: (usize, usize) = (14, 12);
 
 /// Offset from the eye centre towards the inner canthus (between the plica semilunaris and the
 /// canthus, paper Fig. 3), as a fraction of the eye distance. dlib markup: the inner canthus is
@@ -179,7 +179,7 @@ pub(crate) const NOSTRIL_TO_ALAR: f64 = 0.10;
 const MARGIN_X: usize = 80;
 const MARGIN_Y: usize = 40;
 
-/// The face box resampled so that it is [`FACE_WIDTH`] pixels wide, with a margin.
+/// The face box resampled so that it is `FACE_WIDTH` pixels wide, with a margin.
 ///
 /// Normalised coordinates `(u, v)` have `(0, 0)` at the box's top-left corner; image coordinates
 /// are `x = box.x + u * scale`, `y = box.y + v * scale`.
@@ -201,7 +201,7 @@ pub struct NormalizedFace {
 }
 
 impl NormalizedFace {
-    /// Resamples `face_box` of `gray` to [`FACE_WIDTH`] pixels wide (aspect kept), with a
+    /// Resamples `face_box` of `gray` to `FACE_WIDTH` pixels wide (aspect kept), with a
     /// triangle (area-weighted when shrinking) filter and edge replication outside the image.
     pub fn new(gray: &GrayImage, face_box: Rect) -> Self {
         let face = Self::frame(face_box, 0.0);
@@ -214,7 +214,7 @@ impl NormalizedFace {
     /// caller that reads only a band of the face, such as [`FeatureLocator::nostrils_below`]
     /// through [`nostril_band`]. Reading outside the band is a caller's error: it reads the
     /// band's nearest row instead (and fails a debug assertion).
-    pub fn band(gray: &GrayImage, face_box: Rect, v_lo: f64, v_hi: f64) -> Self {
+    pub(crate) fn band(gray: &GrayImage, face_box: Rect, v_lo: f64, v_hi: f64) -> Self {
         let face = Self::frame(face_box, 0.0);
         let last = (face.height - 1) as f64;
         let row = |v: f64| (v + MARGIN_Y as f64).floor().clamp(0.0, last) as usize;
@@ -267,7 +267,7 @@ impl NormalizedFace {
 
     /// Like [`Self::new`], but the normalised frame is turned by `roll` radians about the box's
     /// centre (positive: clockwise on screen), so that a face whose head is tilted by `roll`
-    /// appears upright in it; [`Self::to_image`] maps its points back to the image.
+    /// appears upright in it; `Self::to_image` maps its points back to the image.
     ///
     /// The box is first resampled axis-aligned at the normalised scale (area-weighted, so large
     /// faces do not alias) over a region holding the turned frame, which is then read
@@ -319,23 +319,14 @@ impl NormalizedFace {
         face
     }
 
-    /// How far the normalised frame is turned against the image, radians.
-    pub fn roll(&self) -> f64 {
-        self.roll
-    }
-
     /// Image pixels per normalised pixel.
-    pub fn scale(&self) -> f64 {
+    #[cfg(test)]
+    pub(crate) fn scale(&self) -> f64 {
         self.scale
     }
 
-    /// The face box this was made from.
-    pub fn face_box(&self) -> Rect {
-        self.face_box
-    }
-
     /// Image coordinates of a normalised point.
-    pub fn to_image(&self, p: Point) -> Point {
+    pub(crate) fn to_image(&self, p: Point) -> Point {
         if self.roll == 0.0 {
             return Point::new(
                 self.face_box.x + p.x * self.scale,
@@ -353,6 +344,7 @@ impl NormalizedFace {
     }
 
     /// Normalised coordinates of an image point.
+    #[allow(clippy::wrong_self_convention)] // The inverse of `to_image`.
     pub fn from_image(&self, p: Point) -> Point {
         if self.roll == 0.0 {
             return Point::new(
@@ -393,7 +385,7 @@ impl NormalizedFace {
     /// Cuts a `size x size` patch centred on normalised `centre` (the patch's `(size/2, size/2)`
     /// sample lands on it) from the view de-sheared by `k` about row `pivot_v`: the sample at
     /// `(u, v)` of that view is taken at `(u + k (v - pivot_v), v)` of the face.
-    pub fn patch(&self, centre: Point, size: usize, k: f64, pivot_v: f64, out: &mut [f32]) {
+    pub(crate) fn patch(&self, centre: Point, size: usize, k: f64, pivot_v: f64, out: &mut [f32]) {
         let half = (size / 2) as f64;
         let last_x = self.width.saturating_sub(1);
         for (j, row) in out.chunks_exact_mut(size).enumerate() {
@@ -476,7 +468,7 @@ fn eyes_in_view(
 /// patches of side `patch_size` in the upright face normalised from `face_box`, for eyes at
 /// image points `right_eye` and `left_eye` and shear `k`: what [`NormalizedFace::band`] needs
 /// to resample. (A shear moves the patches' columns, never their rows.)
-pub fn nostril_band(
+pub(crate) fn nostril_band(
     face_box: Rect,
     right_eye: Point,
     left_eye: Point,
@@ -525,7 +517,7 @@ pub struct EyePair {
 }
 
 impl EyePair {
-    /// The pair's score: its features weighed by [`EYE_PAIR_WEIGHTS`].
+    /// The pair's score: its features weighed by `EYE_PAIR_WEIGHTS`.
     pub fn score(&self) -> f64 {
         self.features
             .iter()
@@ -547,7 +539,7 @@ pub enum EyeSearch {
 
 /// Scales `v` to zero mean and unit length (all zeros when constant), so that the dot product
 /// of two such vectors is their normalised correlation
-/// ([`zero_mean_correlation`](crate::filters::zero_mean_correlation)).
+/// (`filters::zero_mean_correlation`).
 fn standardize(v: &mut [f32]) {
     let n = v.len().max(1) as f64;
     let mean = v.iter().map(|&x| f64::from(x)).sum::<f64>() / n;
@@ -590,7 +582,7 @@ fn gradients(patch: &[f32], side: usize, out: &mut [f32]) {
     }
 }
 
-/// The nose filter's converged result (see [`FeatureLocator::iterated_nose_shear`]).
+/// The nose filter's converged result (see `FeatureLocator::iterated_nose`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct NoseTip {
     /// The shear the iteration converged on.
@@ -627,7 +619,7 @@ pub struct FacePoints {
     /// The mouth peak's peak-to-sidelobe ratio (0 without a mouth filter).
     pub mouth_psr: f64,
     /// The lower nose as the nose filter found it (image pixels), when the nose's estimate set
-    /// the view ([`FeatureLocator::locate_from`]); `None` for a view given by the caller.
+    /// the view (`FeatureLocator::locate_from`); `None` for a view given by the caller.
     pub nose_tip: Option<Point>,
     /// The nose filter's peak-to-sidelobe ratio (0 without `nose_tip`).
     pub nose_tip_psr: f64,
@@ -660,13 +652,14 @@ impl std::fmt::Debug for FeatureLocator<'_> {
 
 impl<'f> FeatureLocator<'f> {
     /// A locator using `filters` (plans its FFTs here).
+    #[cfg(any(test, feature = "dev"))]
     pub fn new(filters: &'f EyeFilters) -> Self {
         Self::with_correlator(filters, Correlator::new(filters.size()))
     }
 
     /// A locator reusing `correlator` (which must be of the filters' size), so that FFT plans are
     /// made once per thread rather than once per face.
-    pub fn with_correlator(filters: &'f EyeFilters, correlator: Correlator) -> Self {
+    pub(crate) fn with_correlator(filters: &'f EyeFilters, correlator: Correlator) -> Self {
         let size = filters.size();
         debug_assert_eq!(correlator.size(), size);
         Self {
@@ -681,7 +674,7 @@ impl<'f> FeatureLocator<'f> {
     }
 
     /// Gives the correlator back, for the next locator.
-    pub fn into_correlator(self) -> Correlator {
+    pub(crate) fn into_correlator(self) -> Correlator {
         self.correlator
     }
 
@@ -890,7 +883,7 @@ impl<'f> FeatureLocator<'f> {
     /// The paper's nostrils (the left-eye filter in crops below each eye) below eyes located by
     /// other means (image pixels), in the view of `face` de-sheared by `k` about the eye row:
     /// each nostril in image pixels with its peak-to-sidelobe ratio, right then left.
-    pub fn nostrils_below(
+    pub(crate) fn nostrils_below(
         &mut self,
         face: &NormalizedFace,
         right_eye: Point,
@@ -914,7 +907,7 @@ impl<'f> FeatureLocator<'f> {
     /// the nose search window; otherwise the search is limited to the residual search window.
     ///
     /// The eyes are given, and the nose returned, in normalised-face coordinates of the view.
-    pub fn nose_shear(
+    pub(crate) fn nose_shear(
         &mut self,
         face: &NormalizedFace,
         right_eye: Point,
@@ -960,19 +953,9 @@ impl<'f> FeatureLocator<'f> {
     /// 64x64 patch, whose upper part (the nose bridge, near the eye row) moves less under shear
     /// than the nose tip, so the peak lands between them. Measured on 250 Caltech faces at
     /// k = 0.40 with face boxes from the annotated eyes: median 0.289 after one pass. Each pass
-    /// removes most of the remaining shear, so the estimate converges on the truth.
-    pub fn iterated_nose_shear(
-        &mut self,
-        face: &NormalizedFace,
-        right_eye: Point,
-        left_eye: Point,
-        start_k: f64,
-    ) -> f64 {
-        self.iterated_nose(face, right_eye, left_eye, start_k).k
-    }
-
-    /// [`Self::iterated_nose_shear`] with where the nose filter's last peak lies, in the face's
-    /// own normalised coordinates (not de-sheared).
+    /// removes most of the remaining shear, so the estimate converges on the truth. Returns the
+    /// shear and where the nose filter's last peak lies, in the face's own normalised
+    /// coordinates (not de-sheared).
     fn iterated_nose(
         &mut self,
         face: &NormalizedFace,
@@ -1001,7 +984,7 @@ impl<'f> FeatureLocator<'f> {
 
     /// Locates both eyes and both nostrils in `face`, looking at the view de-sheared by `k`
     /// (pass 0 for the face as it is, or `None` to de-shear first by the nose filter's estimate,
-    /// [`FeatureLocator::nose_shear`]),
+    /// `FeatureLocator::nose_shear`),
     /// and returns the points in image pixels.
     ///
     /// The eye row is the pivot of the de-shearing, so the eyes stay where the detector box puts
@@ -1017,7 +1000,7 @@ impl<'f> FeatureLocator<'f> {
     /// (the shear a detection was made under): the eyes are first found there, and the nose
     /// iteration starts there, so that under strong shear the filters see nearly upright
     /// features from the first pass.
-    pub fn locate_from(&mut self, face: &NormalizedFace, start_k: f64) -> FacePoints {
+    pub(crate) fn locate_from(&mut self, face: &NormalizedFace, start_k: f64) -> FacePoints {
         let (right, left) = self.find_eyes(face, start_k);
         let tip = self.iterated_nose(face, right.position, left.position, start_k);
         FacePoints {

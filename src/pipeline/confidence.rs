@@ -9,7 +9,7 @@ use crate::geometry::{Point, Rect};
 use crate::locate::filters::FacePoints;
 use crate::locate::network::LocatedFace;
 
-/// A logistic confidence model: weights of [`confidence`]'s features, in their order, and the
+/// A logistic confidence model: weights of `confidence`'s features, in their order, and the
 /// intercept. Fitted by `scripts/fit_confidence.py`, which generates them into `src/fitted.rs`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ConfidenceModel {
@@ -37,7 +37,7 @@ impl ConfidenceModel {
     }
 
     /// The model fitted for filters of type `kind`: the peak-to-sidelobe ratios of the three
-    /// filter types live on different scales, so each has its own fit (see [`confidence`]; the
+    /// filter types live on different scales, so each has its own fit (see `confidence`; the
     /// values are generated into `src/fitted.rs`, which names the commands each was fitted by).
     pub fn for_filters(kind: FilterType) -> Self {
         match kind {
@@ -56,7 +56,7 @@ impl ConfidenceModel {
         }
     }
 
-    /// The model fitted for the landmark network (see [`network_confidence`]).
+    /// The model fitted for the landmark network (see `network_confidence`).
     ///
     /// Fitted by `scripts/fit_confidence.py --model network` on the estimates of the 817
     /// development faces that no accuracy table measures and the network was never trained on
@@ -88,7 +88,7 @@ impl ConfidenceModel {
 /// of the development faces that no accuracy table measures and the landmark network was never
 /// trained on (`eval shear --faces unseen`), and checked on the faces the tables measure
 /// (`src/fitted.rs` gives each fit's figures).
-pub fn confidence(
+pub(crate) fn confidence(
     points: &FacePoints,
     estimate: &FaceEstimate,
     face_box: Rect,
@@ -127,7 +127,11 @@ pub fn confidence(
 /// 6. the roll, `|degrees| / 10`;
 /// 7. how far the located eye distance over the detector's box width is from 0.381, times 10
 ///    (a box that does not fit the eyes found: a false detection, or eyes found elsewhere).
-pub fn network_confidence(found: &LocatedFace, face_box: Rect, model: &ConfidenceModel) -> f64 {
+pub(crate) fn network_confidence(
+    found: &LocatedFace,
+    face_box: Rect,
+    model: &ConfidenceModel,
+) -> f64 {
     let ratio = found.right_eye.distance(found.left_eye) / face_box.width.max(1.0);
     let features = [
         found.spread[0].max(found.spread[1]),

@@ -262,7 +262,7 @@ impl Unshear {
     /// [`Self::estimate`] of a photo read with its [`Metadata`](crate::imageio::Metadata)
     /// ([`read_image_with_metadata`](crate::imageio::read_image_with_metadata)), as the CLI
     /// reports it: a warning first when the decode is mostly without data
-    /// ([`missing_data_warning`](crate::imageio::missing_data_warning)), and, when the EXIF
+    /// (`imageio::missing_data_warning`), and, when the EXIF
     /// orientation turned the photo a quarter (a phone held upright, whose sensor rows are the
     /// picture's columns), the vertical shear of [`Self::read_by_columns`].
     pub fn estimate_photo(
@@ -282,7 +282,7 @@ impl Unshear {
 
     /// `report` (of an upright picture, [`Readout::Rows`]) for a picture read out column by
     /// column: every face's readings converted to the vertical shear `c` of `y' = y + c x` and
-    /// the head's roll under it ([`vertical_from_row_reading`](crate::estimate::vertical_from_row_reading)),
+    /// the head's roll under it (`estimate::vertical_from_row_reading`),
     /// an estimate beyond [`Config::max_shear`] or without a reading refused, and the image's
     /// shear found again from the faces. Read along its rows, such a skew looks like a roll
     /// and a shear whose correction would turn the picture.

@@ -99,7 +99,7 @@ pub struct FaceReport {
     /// The landmark network's own reading of the shear ([`Locator::Network`] only).
     pub k_network: Option<f64>,
     /// The shear the network's points give ([`Locator::Network`] only; see
-    /// [`LocatedFace::k_points`](crate::locate::network::LocatedFace::k_points)).
+    /// `LocatedFace::k_points`).
     pub k_points: Option<f64>,
     /// How widely the network's heatmaps spread about the right eye, left eye, nose and mouth,
     /// in eye distances ([`Locator::Network`] only; small when it is sure).

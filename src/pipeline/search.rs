@@ -10,7 +10,7 @@ use super::combine::measured_shear;
 use super::report::FaceReport;
 use super::Unshear;
 use crate::config::Locator;
-use crate::detect::boxes::{box_around_eyes, eyes_in_box, scaled_about_centre};
+use crate::detect::boxes::{box_around_eyes, eyes_in_box};
 use crate::detect::{Cascade, DetectorParams, FaceDetector};
 use crate::geometry::{Point, Rect, Shear};
 use crate::warp::{self, Canvas, Interpolation, Placement};
@@ -150,7 +150,7 @@ pub struct Detection {
     /// The detector's neighbour count (raw hits merged into the box; more is surer).
     pub neighbors: u32,
     /// Whether the box is a near miss of the detector, not one of its detections (see
-    /// [`FaceDetector::detect_with_near_misses`] and the thorough search's stage slack).
+    /// `FaceDetector::detect_with_near_misses` and the thorough search's stage slack).
     pub near_miss: bool,
 }
 
@@ -298,7 +298,7 @@ impl Unshear {
     ) -> Vec<Detection> {
         tagged_boxes(detector, gray)
             .map(|(face_box, neighbors, near_miss)| Detection {
-                face_box: scaled_about_centre(face_box, box_scale),
+                face_box: face_box.scaled_about_center(box_scale),
                 view_k: 0.0,
                 view_roll: 0.0,
                 neighbors,
@@ -381,7 +381,7 @@ impl Unshear {
         };
         tagged_boxes(detector, &view)
             .map(|(b, neighbors, near_miss)| {
-                let b = scaled_about_centre(b, box_scale);
+                let b = b.scaled_about_center(box_scale);
                 // The eye row's midpoint, from the view back to the input; the box keeps its
                 // size and is placed around it as the detector placed it (for a turned view,
                 // turned about its centre: see `NormalizedFace::rotated`).

@@ -8,9 +8,7 @@ use super::search::{
     THOROUGH_HALF_STEP_LADDER, TURNED_DESHEARED_MIN_ROLL, TURNED_DESHEARED_SHEARS,
 };
 use super::*;
-use crate::detect::boxes::{
-    box_around_eyes, eyes_in_box, scaled_about_centre, EYE_DISTANCE_PER_BOX_WIDTH,
-};
+use crate::detect::boxes::{box_around_eyes, eyes_in_box, EYE_DISTANCE_PER_BOX_WIDTH};
 use crate::locate::filters::{NormalizedFace, FACE_WIDTH};
 
 /// A corrector with the built-in models.
@@ -217,8 +215,8 @@ fn a_box_around_eyes_puts_them_where_the_turned_face_expects() {
 #[test]
 fn boxes_scale_about_their_centre() {
     let b = Rect::new(10.0, 20.0, 100.0, 50.0);
-    assert_eq!(scaled_about_centre(b, 1.0), b);
-    let s = scaled_about_centre(b, 0.9);
+    assert_eq!(b.scaled_about_center(1.0), b);
+    let s = b.scaled_about_center(0.9);
     assert!((s.width - 90.0).abs() < 1e-12 && (s.height - 45.0).abs() < 1e-12);
     assert!((s.x - 15.0).abs() < 1e-12 && (s.y - 22.5).abs() < 1e-12);
 }

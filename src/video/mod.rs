@@ -369,7 +369,7 @@ impl VideoFrame {
     /// Shifts every row by its own amount, `out(x, y) = in(x + shifts[y], y)` with `shifts` per
     /// (luma) row in (luma) pixels: the correction of a pan whose speed changes during the
     /// readout. YUV frames go through [`shift_rows_yuv`], images through
-    /// [`warp::try_shift_rows`]; the size is kept.
+    /// `warp::try_shift_rows`; the size is kept.
     ///
     /// # Errors
     /// [`Error::InvalidArgument`] when `shifts.len()` is not the height or a shift is not
@@ -417,7 +417,7 @@ impl VideoFrame {
     /// De-shears each face region by its own shear, the rest untouched (a subject moving in
     /// front of a still camera): `regions` holds each region (in luma pixels, already enlarged)
     /// and its `k`, undone about the region's middle row and feathered into its surroundings as
-    /// [`warp::remove_shear_in_region`] does; chroma planes follow with their subsampling.
+    /// `warp::remove_shear_in_region` does; chroma planes follow with their subsampling.
     ///
     /// # Errors
     /// [`Error::InvalidArgument`] when a `k` is not finite.

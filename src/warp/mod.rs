@@ -1,12 +1,12 @@
 //! Sub-pixel row shifts that apply or undo a horizontal shear (equation 6 of the paper).
 //!
 //! A shear moves every row sideways by a constant amount, `s(y) = k * (y - c)` (see
-//! [`crate::geometry`] for the convention). Undoing it therefore needs no 2-D resampling: each
+//! `crate::geometry` for the convention). Undoing it therefore needs no 2-D resampling: each
 //! output row is the same input row shifted by a constant sub-pixel amount, so the interpolation
 //! weights are computed once per row and the inner loop is a short, branch-free dot product over
 //! contiguous samples that the compiler vectorises.
 //!
-//! The same machinery takes any offset per row ([`try_shift_rows`]): under a rolling shutter a
+//! The same machinery takes any offset per row (`try_shift_rows`): under a rolling shutter a
 //! view whose speed changes during the readout offsets the rows along a curve rather than a
 //! line. The vertical counterpart, [`try_resample_rows`], moves whole rows instead (a view
 //! moving up or down during the readout stretches or squeezes the picture).
@@ -92,6 +92,7 @@ pub enum Canvas {
 /// offsets are 0; for [`Canvas::Expand`] `offset_x <= 0`; for [`Canvas::Crop`] both are usually
 /// positive. The offsets are always whole numbers (no resampling is added by the placement).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[non_exhaustive]
 pub struct Placement {
     /// Frame column of the returned image's column 0.
     pub offset_x: f64,
@@ -117,7 +118,7 @@ const SNAP_EPS: f64 = 1e-9;
 
 /// The largest output (in pixels) that [`try_apply_shear`] will allocate for a canvas. Only an
 /// absurd `k` with [`Canvas::Expand`] can reach it.
-pub const MAX_OUTPUT_PIXELS: u64 = 1 << 32;
+pub(crate) const MAX_OUTPUT_PIXELS: u64 = 1 << 32;
 
 fn snap(v: f64) -> f64 {
     let r = v.round();
@@ -144,7 +145,7 @@ fn snap(v: f64) -> f64 {
 /// [`Error::InvalidArgument`] if the shear is not finite, the `Expand` canvas would exceed
 /// [`MAX_OUTPUT_PIXELS`], or no `Crop` rectangle exists (an image 1 pixel wide with fractional
 /// shifts).
-pub fn sheared_canvas(
+pub(crate) fn sheared_canvas(
     width: u32,
     height: u32,
     shear: Shear,
@@ -280,7 +281,7 @@ pub fn try_remove_shear(
 
 /// `img` with its rows and columns swapped (`(x, y)` to `(y, x)`): a vertical shear becomes a
 /// horizontal one, which the row warps above undo.
-pub fn transpose(img: &DynamicImage) -> DynamicImage {
+pub(crate) fn transpose(img: &DynamicImage) -> DynamicImage {
     img.rotate90().fliph()
 }
 
@@ -306,7 +307,7 @@ pub fn try_remove_shear_gray(
 /// # Errors
 /// [`Error::InvalidArgument`] when `shifts.len()` is not the image's height or a shift is not
 /// finite.
-pub fn try_shift_rows(
+pub(crate) fn try_shift_rows(
     img: &DynamicImage,
     shifts: &[f64],
     interp: Interpolation,
@@ -315,11 +316,11 @@ pub fn try_shift_rows(
     Ok(per_variant!(img, |buf| warp_buffer(buf, &plan, interp)))
 }
 
-/// [`try_shift_rows`] for a grey image, without wrapping it in a [`DynamicImage`] (which would
+/// `try_shift_rows` for a grey image, without wrapping it in a [`DynamicImage`] (which would
 /// take a copy of it).
 ///
 /// # Errors
-/// As [`try_shift_rows`].
+/// As `try_shift_rows`.
 pub fn try_shift_rows_gray(
     gray: &GrayImage,
     shifts: &[f64],
@@ -419,7 +420,7 @@ fn negate(shear: Shear) -> Shear {
 /// correction to zero: the larger of 20 % of the region's smaller side, twice the largest shift
 /// inside the region (which keeps the warp one-to-one: the shift never changes faster than half a
 /// pixel per pixel) and 2 pixels.
-pub fn feather_margin(shear: Shear, region: Rect) -> f64 {
+pub(crate) fn feather_margin(shear: Shear, region: Rect) -> f64 {
     let (y0, y1) = (region.y, region.y + region.height.max(0.0));
     let max_shift = shear.k.abs() * (y0 - shear.pivot_y).abs().max((y1 - shear.pivot_y).abs());
     (0.2 * region.width.min(region.height).max(0.0))
@@ -436,7 +437,7 @@ pub fn feather_margin(shear: Shear, region: Rect) -> f64 {
 /// outside region + margin are copied unchanged, bit for bit. Same size and variant as the input.
 /// Positions past the image border take the edge pixel (this warp never introduces fill).
 /// A non-finite shear or an empty region returns an unchanged copy.
-pub fn remove_shear_in_region(
+pub(crate) fn remove_shear_in_region(
     img: &DynamicImage,
     shear: Shear,
     region: Rect,

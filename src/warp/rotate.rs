@@ -15,13 +15,14 @@ use crate::{Error, Point, Result};
 /// `c_in + R(-angle) (v - c_view)`, where `R(a)` turns by `a` (x right, y down: positive angles
 /// turn clockwise on screen).
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct Rotation {
     /// The angle the input was turned by to make the view, radians.
-    pub angle: f64,
+    pub(crate) angle: f64,
     /// The input point at the centre of the rotation.
-    pub input_centre: Point,
+    pub(crate) input_centre: Point,
     /// Where that point lies in the view.
-    pub view_centre: Point,
+    pub(crate) view_centre: Point,
 }
 
 impl Rotation {
@@ -52,7 +53,7 @@ impl Rotation {
 ///
 /// # Errors
 /// [`Error::InvalidArgument`] when the angle is not finite or the canvas would exceed
-/// [`super::MAX_OUTPUT_PIXELS`].
+/// `super::MAX_OUTPUT_PIXELS`.
 pub fn rotate_gray(gray: &GrayImage, angle: f64) -> Result<(GrayImage, Rotation)> {
     if !angle.is_finite() {
         return Err(Error::InvalidArgument(format!(

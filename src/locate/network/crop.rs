@@ -18,15 +18,15 @@ use crate::resample::{bilinear_clamped, resample};
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CropFrame {
     /// The image point the crop's centre shows.
-    pub centre: Point,
+    pub(crate) centre: Point,
     /// Image pixels per crop pixel.
-    pub scale: f64,
+    pub(crate) scale: f64,
     /// The shear the crop removes (pivot: the crop's centre).
-    pub k: f64,
+    pub(crate) k: f64,
     /// The roll the crop removes, radians (positive: the head turned clockwise on screen).
-    pub roll: f64,
+    pub(crate) roll: f64,
     /// Side of the crop, pixels.
-    pub size: usize,
+    pub(crate) size: usize,
 }
 
 impl CropFrame {
@@ -38,7 +38,7 @@ impl CropFrame {
     }
 
     /// The crop's own centre, in crop pixels.
-    pub fn crop_centre(&self) -> f64 {
+    pub(crate) fn crop_centre(&self) -> f64 {
         (self.size as f64 - 1.0) / 2.0
     }
 
@@ -60,7 +60,7 @@ impl CropFrame {
     }
 
     /// The image-axis-aligned box holding every pixel the crop shows.
-    pub fn footprint(&self) -> Rect {
+    pub(crate) fn footprint(&self) -> Rect {
         let n = self.size as f64 - 1.0;
         let corners =
             [(0.0, 0.0), (n, 0.0), (0.0, n), (n, n)].map(|(u, v)| self.to_image(Point::new(u, v)));
@@ -80,7 +80,7 @@ impl CropFrame {
 
     /// Whether every number of the frame is finite and its scale positive (a frame built from a
     /// degenerate box or a runaway estimate is not rendered).
-    pub fn is_valid(&self) -> bool {
+    pub(crate) fn is_valid(&self) -> bool {
         [self.centre.x, self.centre.y, self.scale, self.k, self.roll]
             .iter()
             .all(|v| v.is_finite())
@@ -91,12 +91,12 @@ impl CropFrame {
     /// Renders the crop from `gray`: grey levels 0-255 as `f32`, row-major, `size * size`.
     ///
     /// Each crop pixel is the mean of `m x m` bilinear reads spread over it (`m` the scale
-    /// rounded up, at most [`MAX_SUPERSAMPLING`]), so the anti-aliasing blur is a box of one crop
+    /// rounded up, at most `MAX_SUPERSAMPLING`), so the anti-aliasing blur is a box of one crop
     /// pixel in the crop's own frame: the same for a sheared face as for an upright one. (A
     /// blur in the image's axes, such as resampling the image first and reading it along the
     /// sheared rows, is itself sheared in the crop's frame, and a network trained on upright
     /// photos learns that slant as part of the face's shear: with such crops the estimate
-    /// followed a synthetic shear about 1.5% short.) Faces larger than [`MAX_SUPERSAMPLING`]
+    /// followed a synthetic shear about 1.5% short.) Faces larger than `MAX_SUPERSAMPLING`
     /// image pixels per crop pixel are first reduced by a whole factor (a blur in the image's
     /// axes, but of at most about a fifth of a crop pixel). Outside the image the
     /// edge is replicated. `None` for an invalid frame or a footprint too large to be a face
@@ -109,7 +109,11 @@ impl CropFrame {
     /// of [`MAX_SUPERSAMPLING`] (at least 1): faster for large faces, whose image is then
     /// reduced by a larger whole factor first, a blur in the image's axes of up to about
     /// `1 / max_supersampling` of a crop pixel.
-    pub fn render_with(&self, gray: &GrayImage, max_supersampling: usize) -> Option<Vec<f32>> {
+    pub(crate) fn render_with(
+        &self,
+        gray: &GrayImage,
+        max_supersampling: usize,
+    ) -> Option<Vec<f32>> {
         let Sampling {
             source,
             width: sw,
@@ -350,13 +354,14 @@ fn bilinear_inside(src: &[f32], w: usize, x: f64, y: f64) -> f32 {
 
 /// The most reads per crop pixel and axis in [`CropFrame::render`] (25 in all for a face
 /// shrunk 5 times or more).
-pub const MAX_SUPERSAMPLING: usize = 5;
+pub(crate) const MAX_SUPERSAMPLING: usize = 5;
 
 /// The shear seen in a crop made with `roll` from a face sheared by `residual` more than the
 /// crop removes: the shear factor of the upper-triangular part of `R(-roll) S(residual)` (its
 /// RQ decomposition), which is `residual` itself when `roll` is 0. This is what the network's
 /// shear output is trained to read; [`residual_from_crop_shear`] inverts it.
-pub fn crop_shear(residual: f64, roll: f64) -> f64 {
+#[cfg(any(test, feature = "dev"))]
+pub(crate) fn crop_shear(residual: f64, roll: f64) -> f64 {
     let (s, c) = roll.sin_cos();
     // R(-roll) S(d) = [[c, c d + s], [-s, c - s d]]; the shear of its RQ decomposition is
     // (row1 . row2) / |row2|^2.
@@ -367,7 +372,7 @@ pub fn crop_shear(residual: f64, roll: f64) -> f64 {
 
 /// The residual shear `d` (image frame) for which [`crop_shear`]`(d, roll)` equals `kappa`, the
 /// root nearest `kappa` (the branch through `d = kappa` at roll 0); `None` when there is none.
-pub fn residual_from_crop_shear(kappa: f64, roll: f64) -> Option<f64> {
+pub(crate) fn residual_from_crop_shear(kappa: f64, roll: f64) -> Option<f64> {
     if roll == 0.0 {
         return Some(kappa);
     }

@@ -8,19 +8,23 @@
 //! the shear. Where the crop comes from is described by a [`CropFrame`]; the same frame maps
 //! the points back to the image.
 
-pub mod crop;
-pub mod net;
+mod crop;
+mod net;
 
-pub use crop::{crop_shear, residual_from_crop_shear, CropFrame};
+#[cfg(feature = "dev")]
+pub(crate) use crop::crop_shear;
+pub(crate) use crop::residual_from_crop_shear;
+pub use crop::CropFrame;
 pub use net::{LandmarkNet, NetOutput, Workspace};
 
 use crate::estimate::{shear_and_roll, yaw_corrected};
 use crate::geometry::Point;
 
 /// Side of the crop the network sees, pixels.
-pub const CROP_SIZE: usize = 96;
+#[cfg(feature = "dev")]
+pub(crate) const CROP_SIZE: usize = 96;
 
-pub use crate::detect::boxes::{CROP_EYE_DISTANCES, EYES_ABOVE_CENTRE};
+pub(crate) use crate::detect::boxes::{CROP_EYE_DISTANCES, EYES_ABOVE_CENTRE};
 
 /// The crop frame that shows a face whose eyes' midpoint is at `eyes_midpoint` (image pixels)
 /// and whose eyes are `eye_distance` apart in the upright, unsheared face, with the shear `k`
@@ -80,11 +84,11 @@ pub(crate) const NETWORK_YAW_EXTRAPOLATION: f64 = 0.3;
 /// the located points give ([`LocatedFace::k_points`]).
 pub(crate) const NETWORK_SHEAR_WEIGHT: f64 = 1.0;
 
-/// Most crops per face ([`locate`]).
+/// Most crops per face ([`locate_within`]).
 pub(crate) const MAX_PASSES: usize = 8;
 
-/// How much work [`locate_within`] may spend on one face: the most crops, the most reads per
-/// crop pixel and axis when rendering them ([`CropFrame::render_with`]), and how little the
+/// How much work `locate_within` may spend on one face: the most crops, the most reads per
+/// crop pixel and axis when rendering them (`CropFrame::render_with`), and how little the
 /// estimate must change for it to stop re-cropping.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Budget {
@@ -97,14 +101,14 @@ pub struct Budget {
     /// Change of the estimated roll, radians, below which it stops (0.05 for stills).
     pub roll_tolerance: f64,
     /// Whether each crop is also read mirrored and the two readings averaged
-    /// ([`LandmarkNet::run_mirrored`]): twice the network's time per crop for steadier points.
+    /// (`LandmarkNet::averaged_with_mirrored`): twice the network's time per crop for steadier points.
     /// A crop that reads as no face (a face score under 0.001) is not read again. Used with the
     /// network detector only (the Viola-Jones searches read once).
     pub mirrored: bool,
 }
 
 impl Budget {
-    /// For stills (what [`locate`] uses): up to 8 crops, stopping when the shear changes by
+    /// For stills (what `locate_within` uses): up to 8 crops, stopping when the shear changes by
     /// less than 0.03 and the roll by less than 0.05 rad from one crop to the next, each crop
     /// read as it is and mirrored.
     pub const STILL: Self = Self {
@@ -134,7 +138,7 @@ impl Default for Budget {
     }
 }
 
-/// Change of the estimated shear below which [`locate`] stops re-cropping: what is left is read
+/// Change of the estimated shear below which [`locate_within`] stops re-cropping: what is left is read
 /// by the network instead of removed by the crop, about as well; a tighter tolerance buys
 /// consistency between starts for more crops (docs/how-it-works.md).
 pub(crate) const SHEAR_TOLERANCE: f64 = 0.03;
@@ -146,7 +150,7 @@ pub(crate) const VIDEO_SHEAR_TOLERANCE: f64 = 0.01;
 /// [`Budget::VIDEO`]'s roll tolerance, radians.
 pub(crate) const VIDEO_ROLL_TOLERANCE: f64 = 0.02;
 
-/// How many crops [`locate`] makes of something that is not a face before it gives up: when
+/// How many crops [`locate_within`] makes of something that is not a face before it gives up: when
 /// the face score of each of the first `NO_FACE_PASSES` crops is below [`NO_FACE_SCORE`], the
 /// last reading is returned. Most boxes the thorough search asks about are not faces, and their
 /// crops never settle.
@@ -168,46 +172,46 @@ fn stalled(pass: usize, change: f64, previous_change: f64) -> bool {
 /// network's face score on non-face crops is mostly below 0.001, on faces mostly above 0.9.
 pub(crate) const NO_FACE_SCORE: f64 = 0.001;
 
-/// Change of the estimated roll (radians, about 2.9 degrees) below which [`locate`] stops.
+/// Change of the estimated roll (radians, about 2.9 degrees) below which [`locate_within`] stops.
 pub(crate) const ROLL_TOLERANCE: f64 = 0.05;
 
-/// The largest shear [`locate`] will crop with (as the filters' `MAX_SHEAR`).
+/// The largest shear [`locate_within`] will crop with (as the filters' `MAX_SHEAR`).
 pub(crate) const MAX_CROP_SHEAR: f64 = 0.8;
 
 /// What the network found in one face, image pixels.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct LocatedFace {
+pub(crate) struct LocatedFace {
     /// Subject's right eye centre (image left).
-    pub right_eye: Point,
+    pub(crate) right_eye: Point,
     /// Subject's left eye centre (image right).
-    pub left_eye: Point,
+    pub(crate) left_eye: Point,
     /// The nose point (Caltech's nose annotation: the lower nose).
-    pub nose: Point,
+    pub(crate) nose: Point,
     /// The mouth centre.
-    pub mouth: Point,
+    pub(crate) mouth: Point,
     /// The shear the points give: the mouth axis's shear-and-roll reading extrapolated away from
     /// the nose axis's by 0.3 to cancel yaw; `None` when the points allow none.
-    pub k_points: Option<f64>,
+    pub(crate) k_points: Option<f64>,
     /// The nose axis's own reading.
-    pub k_nose: Option<f64>,
+    pub(crate) k_nose: Option<f64>,
     /// The mouth axis's own reading.
-    pub k_mouth: Option<f64>,
+    pub(crate) k_mouth: Option<f64>,
     /// The network's own reading of the shear, in the image's frame (`k_points` where the
     /// crop's roll leaves no image shear for that reading, near 45 degrees).
-    pub k_network: f64,
+    pub(crate) k_network: f64,
     /// The estimate: the network's own reading `k_network`, weighted against `k_points` by
     /// the network shear weight (1: `k_network` alone).
-    pub k: f64,
+    pub(crate) k: f64,
     /// The head's roll under that shear, radians (as [`crate::estimate::ShearRoll::roll`]).
-    pub roll: f64,
+    pub(crate) roll: f64,
     /// Each heatmap's spread (right eye, left eye, nose, mouth) in eye distances of the crop.
-    pub spread: [f64; 4],
+    pub(crate) spread: [f64; 4],
     /// The network's face score on the last crop: the chance that it shows a face at all.
-    pub face: f64,
+    pub(crate) face: f64,
     /// Crops made.
-    pub passes: usize,
+    pub(crate) passes: usize,
     /// The frame of the last crop.
-    pub frame: CropFrame,
+    pub(crate) frame: CropFrame,
 }
 
 impl LandmarkNet {
@@ -235,15 +239,9 @@ fn upright_distance(a: Point, b: Point, k: f64) -> f64 {
     dx.hypot(dy).max(f64::MIN_POSITIVE)
 }
 
-/// Locates the landmarks of the face that `start` frames (from a detector's box, or a previous
-/// estimate) and estimates its shear: the network reads a crop, the shear and roll are
-/// estimated from what it found, and the face is cropped again around the eyes found with
-/// that shear and roll removed, until the estimate stops changing or after the budget's crops ([`Budget::STILL`]). The
-/// network then sees a nearly upright, unsheared face, the kind it reads best. A walk whose
-/// estimate stops closing in is ended too, and something that is not a face is given up on
-/// after three crops. `None` when a crop cannot be made or the network's reading is not
-/// finite.
-pub fn locate(
+/// [`locate_within`] with the stills' budget ([`Budget::STILL`]).
+#[cfg(test)]
+pub(crate) fn locate(
     net: &LandmarkNet,
     gray: &image::GrayImage,
     start: CropFrame,
@@ -252,9 +250,16 @@ pub fn locate(
     locate_within(net, gray, start, Budget::STILL, ws)
 }
 
-/// [`locate`] with at most `budget`'s crops (at least one), each rendered with at most its
-/// reads per pixel, stopping at its tolerances.
-pub fn locate_within(
+/// Locates the landmarks of the face that `start` frames (from a detector's box, or a previous
+/// estimate) and estimates its shear: the network reads a crop, the shear and roll are
+/// estimated from what it found, and the face is cropped again around the eyes found with
+/// that shear and roll removed, until the estimate stops changing (below the budget's tolerances) or after the budget's
+/// crops (at least one, each rendered with at most its reads per pixel). The
+/// network then sees a nearly upright, unsheared face, the kind it reads best. A walk whose
+/// estimate stops closing in is ended too, and something that is not a face is given up on
+/// after three crops. `None` when a crop cannot be made or the network's reading is not
+/// finite.
+pub(crate) fn locate_within(
     net: &LandmarkNet,
     gray: &image::GrayImage,
     start: CropFrame,

@@ -23,7 +23,7 @@ use crate::modelfile::ModelFile;
 use crate::nn::{add_upsampled, conv, dense, Conv, Im2col, Tensor};
 
 /// Landmarks the network locates, in this order.
-pub const LANDMARK_NAMES: [&str; 4] = ["right_eye", "left_eye", "nose", "mouth"];
+pub(crate) const LANDMARK_NAMES: [&str; 4] = ["right_eye", "left_eye", "nose", "mouth"];
 
 /// The file's magic bytes.
 const MAGIC: &[u8; 8] = b"UNSHEARN";
@@ -102,19 +102,20 @@ pub struct Workspace {
     pooled: Vec<f32>,
     hidden: Vec<f32>,
     head: Vec<f32>,
-    /// The crop mirrored left to right ([`LandmarkNet::run_mirrored`]).
+    /// The crop mirrored left to right ([`LandmarkNet::averaged_with_mirrored`]).
     mirrored: Vec<f32>,
 }
 
 /// What the network reads off one crop.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct NetOutput {
     /// Right eye, left eye, nose, mouth, in crop pixels (pixel centres at integers).
     pub points: [Point; 4],
     /// How widely each heatmap's probability is spread about its point (the root of the
     /// summed variances, crop pixels): small when the network is sure.
     pub spread: [f64; 4],
-    /// The crop's shear as the network reads it (see [`super::crop_shear`]).
+    /// The crop's shear as the network reads it (see `super::crop_shear`).
     pub shear: f64,
     /// The chance, as the network rates it, that the crop shows a face at all (trained on face
     /// crops against crops of other things, including the detector's false alarms).
@@ -272,12 +273,12 @@ impl LandmarkNet {
 
     /// How many eye distances the crop's side spans (see [`super::CROP_EYE_DISTANCES`]); the
     /// network was trained on crops of this geometry.
-    pub fn crop_eye_distances(&self) -> f64 {
+    pub(crate) fn crop_eye_distances(&self) -> f64 {
         self.crop_eye_distances
     }
 
     /// How far above the crop's centre the eyes' midpoint sits, eye distances.
-    pub fn eyes_above_centre(&self) -> f64 {
+    pub(crate) fn eyes_above_centre(&self) -> f64 {
         self.eyes_above_centre
     }
 
@@ -362,13 +363,17 @@ impl LandmarkNet {
     /// [`Self::run`] on `crop` averaged with its reading of the crop mirrored left to right,
     /// taken back (the eyes swap, the shear changes sign): the trainer mirrors crops at random,
     /// so both readings are equally good, and their errors partly cancel.
-    pub fn run_mirrored(&self, crop: &[f32], ws: &mut Workspace) -> NetOutput {
+    #[cfg(test)]
+    pub(crate) fn run_mirrored(&self, crop: &[f32], ws: &mut Workspace) -> NetOutput {
         let direct = self.run(crop, ws);
         self.averaged_with_mirrored(direct, crop, ws)
     }
 
-    /// [`Self::run_mirrored`] from `direct`, the reading of `crop` as it is, already taken.
-    pub fn averaged_with_mirrored(
+    /// `direct`, the network's reading of `crop` as it is, averaged with its reading of the crop
+    /// mirrored left to right, taken back (the eyes swap, the shear changes sign): the trainer
+    /// mirrors crops at random, so both readings are equally good, and their errors partly
+    /// cancel.
+    pub(crate) fn averaged_with_mirrored(
         &self,
         direct: NetOutput,
         crop: &[f32],
