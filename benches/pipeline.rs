@@ -6,13 +6,23 @@
 //! frame with one face and with none, with the thorough (default) and the quick face search.
 //! Correction speed is in `benches/warp.rs`.
 //!
-//! Run: `cargo bench --bench pipeline`.
+//! The `realistic` groups time whole frames as users give them: 1920x1080 scenes composed from
+//! the development photos (a face on clutter, the same sheared by 0.3, no face, eight faces) and
+//! a 4000x3000 photo ([`common::scenes`]), each in memory and end to end from a JPEG file (read
+//! and estimate, as `unshear estimate`; read, estimate, correct and write, as `unshear correct`),
+//! beside the synthetic grey-canvas frame in the same run as a baseline. Without
+//! `../shared/data` they say so and time the synthetic frame alone.
+//!
+//! Run: `cargo bench --bench pipeline` (the realistic rows alone: `-- realistic`).
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use image::imageops::FilterType;
 use unshear::locate::network::{Budget, LandmarkNet, Workspace};
 use unshear::pipeline::Detection;
-use unshear::{Config, FaceStart, Locator, Unshear};
+use unshear::{Config, CorrectOptions, FaceStart, Locator, Unshear};
+
+mod common;
+use common::scenes::{self, Scene};
 
 fn fixture() -> image::DynamicImage {
     let path = concat!(
@@ -294,5 +304,127 @@ fn bench(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench);
+/// Estimates a frame in memory, from a JPEG file, and from a JPEG file to a corrected JPEG, as
+/// the CLI's `estimate` and `correct` do (read with metadata, estimate, correct when a shear was
+/// found, write).
+fn whole_frames(
+    group: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
+    unshear: &Unshear,
+    scenes: &[Scene],
+    dir: &std::path::Path,
+) {
+    use unshear::imageio::{self, WriteOptions};
+    let max = imageio::DEFAULT_MAX_PIXELS;
+    for scene in scenes {
+        let stem = scene
+            .name
+            .replace([' ', ',', ':', '.'], "-")
+            .replace("--", "-");
+        let input = dir.join(format!("{stem}.jpg"));
+        let output = dir.join(format!("{stem}.corrected.jpg"));
+        if let Err(e) = imageio::write_image_atomic(
+            &scene.image,
+            &input,
+            WriteOptions {
+                overwrite: true,
+                ..Default::default()
+            },
+        ) {
+            panic!("writing {}: {e}", input.display());
+        }
+        let report = unshear.estimate(&scene.image);
+        eprintln!(
+            "{}: {} face(s) found, {} accepted, k = {:?}",
+            scene.name,
+            report.faces.len(),
+            report.faces.iter().filter(|f| f.k.is_some()).count(),
+            report.k
+        );
+        group.bench_function(format!("{}, in memory", scene.name), |b| {
+            b.iter(|| unshear.estimate(&scene.image))
+        });
+        group.bench_function(format!("{}, file: read + estimate", scene.name), |b| {
+            b.iter(|| match imageio::read_image_with_metadata(&input, max) {
+                Ok((img, metadata)) => unshear.estimate_photo(&img, &metadata),
+                Err(e) => panic!("reading {}: {e}", input.display()),
+            })
+        });
+        group.bench_function(
+            format!("{}, file: read + estimate + correct + write", scene.name),
+            |b| {
+                b.iter(|| {
+                    let (img, metadata) = match imageio::read_image_with_metadata(&input, max) {
+                        Ok(v) => v,
+                        Err(e) => panic!("reading {}: {e}", input.display()),
+                    };
+                    let report = unshear.estimate_photo(&img, &metadata);
+                    let options = CorrectOptions::default();
+                    if !options.changes(&report) {
+                        return;
+                    }
+                    let fixed = match unshear.correct(&img, &report, &options) {
+                        Ok(f) => f,
+                        Err(e) => panic!("correct: {e}"),
+                    };
+                    drop(img);
+                    let written = imageio::write_image_atomic(
+                        &fixed,
+                        &output,
+                        WriteOptions {
+                            overwrite: true,
+                            metadata,
+                            ..Default::default()
+                        },
+                    );
+                    if let Err(e) = written {
+                        panic!("writing {}: {e}", output.display());
+                    }
+                })
+            },
+        );
+    }
+}
+
+/// Whole frames as users give them (see the module's documentation).
+fn realistic(c: &mut Criterion) {
+    let unshear = match Unshear::new(Config::default()) {
+        Ok(u) => u,
+        Err(e) => panic!("models: {e}"),
+    };
+    // The scenes' JPEGs go to a temporary folder, or are kept in `UNSHEAR_BENCH_SCENES` (to time
+    // the command line on the same files).
+    let temp = match tempfile::tempdir() {
+        Ok(d) => d,
+        Err(e) => panic!("temporary folder: {e}"),
+    };
+    let dir = match std::env::var_os("UNSHEAR_BENCH_SCENES") {
+        Some(d) => std::path::PathBuf::from(d),
+        None => temp.path().to_path_buf(),
+    };
+    if let Err(e) = std::fs::create_dir_all(&dir) {
+        panic!("{}: {e}", dir.display());
+    }
+    let (mut frames, photo) = match scenes::realistic() {
+        Ok((frames, photo)) => (frames, Some(photo)),
+        Err(why) => {
+            eprintln!(
+                "realistic frames skipped: {why}; timing the synthetic grey-canvas frame alone"
+            );
+            (Vec::new(), None)
+        }
+    };
+    frames.push(scenes::grey_canvas());
+    let mut group = c.benchmark_group("realistic 1920x1080");
+    group.sample_size(10);
+    whole_frames(&mut group, &unshear, &frames, &dir);
+    group.finish();
+    if let Some(photo) = photo {
+        let mut group = c.benchmark_group("realistic 4000x3000");
+        group.sample_size(10);
+        whole_frames(&mut group, &unshear, &[photo], &dir);
+        group.finish();
+    }
+}
+
+criterion_group!(benches, bench, realistic);
 criterion_main!(benches);

@@ -229,9 +229,7 @@ fn copy_short(dst: &mut [f32], src: &[f32]) {
 ///
 /// Computed as `c^T = b^T a^T`, so that the pixels (thousands) are `gemm`'s row dimension,
 /// along which its micro-kernels are tiled several SIMD vectors deep, and the few output
-/// channels are its columns. With the `gemm` crate so, one forward pass took 0.81-0.83 ms
-/// instead of the 1.00-1.03 ms of the `matrixmultiply` crate used before (criterion, the two
-/// builds one after the other in both orders; README, *Performance*).
+/// channels are its columns.
 pub(crate) fn matmul(a: &[f32], b: &[f32], c: &mut [f32], m: usize, k: usize, n: usize) {
     assert!(a.len() >= m * k && b.len() >= k * n && c.len() >= m * n);
     // `gemm` computes dst = alpha dst + beta lhs rhs and takes each column stride before the

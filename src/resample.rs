@@ -192,9 +192,9 @@ fn copy_clamped(gray: &GrayImage, x0: f64, y0: f64, width: usize, rows: Range<us
 /// `gray` shrunk to `width x height` by averaging each output pixel's block of source pixels:
 /// the same pixels as [`image::imageops::thumbnail`], bit for bit (the detector's pyramid and
 /// training windows are made with that filter), several times faster. Hand-written because
-/// `thumbnail` reads every pixel through `get_pixel` with four-channel sums, which took a third of
-/// a 1920x1080 frame's estimate; here each block's rows are summed once per output row with a
-/// loop the compiler vectorises. Sizes that enlarge either way go to `thumbnail` itself.
+/// `thumbnail` reads every pixel through `get_pixel` with four-channel sums, slow enough to
+/// weigh on a whole frame's estimate; here each block's rows are summed once per output row with
+/// a loop the compiler vectorises. Sizes that enlarge either way go to `thumbnail` itself.
 pub(crate) fn shrink_by_area(gray: &GrayImage, width: u32, height: u32) -> GrayImage {
     let (w, h) = gray.dimensions();
     if w == 0 || h == 0 || width == 0 || height == 0 || width > w || height > h {

@@ -561,8 +561,7 @@ impl ProposalNet {
             // `resize` keeps an intermediate of 16 bytes per pixel of the photo's width times the
             // level's height (83 MB for a level of a 12 MP photo, more than all the rest of
             // the search); an area average (`thumbnail`'s, bit for bit) makes the level directly
-            // and is many times faster (the triangle filter of a 1080p frame's levels took
-            // longer than the detector's convolutions), and its box average is the blur the
+            // and is many times faster than the triangle filter, and its box average is the blur the
             // detector's training windows have (`examples/detector_crops.rs`), so the
             // detector's levels are always made with it.
             crate::resample::shrink_by_area(source, lw, lh)

@@ -321,9 +321,8 @@ struct TwoNodeTree {
 impl TwoNodeTree {
     /// The leaf value a window reaches. Both nodes are scored and the leaf picked without a
     /// branch: whether a window goes on to the second node is a coin toss the processor
-    /// mispredicts, which cost more than scoring the second node. (This and the layout took
-    /// `cargo bench --bench pipeline`'s detection of a 1920x1080 frame from 365 to 276 ms on one
-    /// core, with the same windows found; README, *Performance*.)
+    /// mispredicts, which costs more than scoring the second node. The windows found are the
+    /// same either way.
     #[inline(always)]
     fn leaf(&self, win: &[i32], inv: f32) -> f64 {
         let v0 = self.root.value(win) * inv;
@@ -505,7 +504,7 @@ fn scan_scale(
     // (see `Integrals`): the same sums as whole-image integrals, in memory bounded by
     // BAND_BYTES per scale (96 MB of integrals saved on a 12 MP photo). Bands are taken in
     // turn, so one buffer serves them all; the rows of a band are scanned in parallel. Small
-    // images fit in one band, computed exactly once (smaller bands for them cost video ~10%).
+    // images fit in one band, computed exactly once (smaller bands would slow video down).
     let step = if factor >= 2.0 { 1 } else { 2 };
     let bytes_per_row = (sw + 1) * if data.has_tilted { 12 } else { 8 };
     let min_height = (MIN_BAND_WINDOW_ROWS - 1) * step + wh;

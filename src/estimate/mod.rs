@@ -75,8 +75,7 @@ pub(crate) fn shear_from_sides(
 /// The largest roll (radians, 57°) the shear-and-roll model reports. The frontal cascade fires
 /// up to about 35° of roll in the image as it is (the de-sheared views add a little); turned
 /// views (`--roll-hypotheses`) find heads tilted further, whose features are then searched
-/// upright, so a roll up to this is real; beyond it the points are taken to be wrong. (It was
-/// 0.6 rad, 34°, before the turned views.)
+/// upright, so a roll up to this is real; beyond it the points are taken to be wrong.
 ///
 /// Past about 30° of roll with a shear, the points no longer pin down one answer: two
 /// (shear, roll) pairs make the eye line and the face's axis perpendicular, and the root

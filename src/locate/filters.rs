@@ -57,15 +57,9 @@ pub(crate) const MOUTH_BELOW_EYES: f64 = 1.10;
 /// nose's estimate and the mouth's own spread (std 0.08), vertically its spread (std 0.15;
 /// 5th-95th percentile 0.90-1.32).
 ///
-/// Sideways 0.15 since the release that retrained the filters on the 1-based annotations (0.25
-/// before). Measured (MOSSE filters, k = 0 and +-0.40): on the first 300 development faces,
-/// 0.10 / 0.15 / 0.20 / 0.25 put 48.3 / 47.3 / 48.0 / 47.7% of them within 0.05 at k = 0 and
-/// accepted 233 / 233 / 245 / 246 wrong estimates (more than 0.10 off) of 900; on the other
-/// 628, 0.15 put as many within 0.05 as 0.25 (46.2 / 42.7 / 41.9% against 46.8 / 42.5 / 41.9%
-/// at k = 0 / +0.4 / -0.4) and accepted 24 fewer wrong estimates (498 against 522), with 56 of
-/// 75 Yale images within 0.05 (55). An earlier release saw the same on its filters (0.18: 10
-/// fewer wrong of 469) but judged it noise; 0.12 then measured a test fixture 0.09 off at
-/// k = -0.4, so the window is not narrowed further.
+/// Sideways 0.15: on the development faces (MOSSE filters, k = 0 and +-0.40) it places as many
+/// mouths within 0.05 as a wider window and accepts fewer wrong estimates; narrower windows
+/// miss the mouth of strongly sheared faces.
 pub(crate) const MOUTH_SEARCH: (f64, f64) = (0.15, 0.25);
 
 /// Sideways half-range (eye distances) of the nose search after the first pass, when the view

@@ -83,8 +83,8 @@ pub(crate) const MEASURED_VIEW_MIN_FACE_RATIO: f64 = 0.5;
 /// The widest image (columns) whose faces the pass over the image de-sheared by the measured
 /// shear looks for from the first pass's smallest face: on a wider image it looks from the
 /// face that small in the image shrunk to this width (from about 83 px on a 4000x3000 photo),
-/// so that it costs at most about what the first pass costs on a 1920x1080 frame. A second
-/// pass over all of a 12-megapixel photo's scales had doubled its search (0.2 s more).
+/// so that it costs at most about what the first pass costs on a 1920x1080 frame, where a
+/// second pass over all of a large photo's scales would double its search.
 pub(crate) const MEASURED_VIEW_FULL_COLUMNS: f64 = 1920.0;
 
 /// The smallest face (box width) the pass over an image `width` columns wide, de-sheared by

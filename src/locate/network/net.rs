@@ -11,9 +11,8 @@
 //!
 //! Written by hand rather than with an inference crate: the network is fifteen small
 //! convolutions, which im2col and one `gemm` product each run at the speed of a
-//! general matrix product, while a framework (candle: 157 crates, measured 12.5 ms for a network
-//! of this size; tract: ONNX parsing at run time) would add most of this crate's build time for
-//! no gain. The file format is documented on [`LandmarkNet::from_bytes`].
+//! general matrix product, while an inference framework (with its own dependency tree, or ONNX
+//! parsing at run time) would add most of this crate's build time for no gain. The file format is documented on [`LandmarkNet::from_bytes`].
 
 use serde::Deserialize;
 
@@ -88,9 +87,8 @@ pub struct LandmarkNet {
 
 /// Reusable buffers for [`LandmarkNet::run`] (one per thread): the activations and im2col
 /// matrices, which are not allocated again once they have grown to the network's sizes. The
-/// `gemm` crate still allocates small packing buffers inside some products: 20 allocations per
-/// forward pass, in a one-off count with a counting global allocator, not kept
-/// (`matrixmultiply` before it made 15). Against a pass of about 0.8 ms they do not show.
+/// `gemm` crate still allocates small packing buffers inside some products, a few per forward
+/// pass, too small to matter beside the pass itself.
 #[derive(Debug, Clone, Default)]
 pub struct Workspace {
     input: Tensor,

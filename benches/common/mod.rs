@@ -1,0 +1,3 @@
+//! Helpers shared by the benches (each bench includes what it uses with `mod common;`).
+
+pub mod scenes;
