@@ -1,4 +1,4 @@
-//! Frame-to-frame motion ([`unshear::video::motion::MotionEstimator`]): one push of a
+//! Frame-to-frame motion (`MotionEstimator`, feature `dev`): one push of a
 //! 1920x1080 and of a 1280x720 luma frame (reduction, 8 band FFTs, cross-power, peak,
 //! refinement), alternating two frames of a textured scene 37.4 px apart, default settings, on
 //! the default rayon pool.
@@ -8,7 +8,8 @@
 use criterion::{criterion_group, criterion_main, Criterion};
 use image::{GrayImage, Luma};
 use std::hint::black_box;
-use unshear::video::motion::{MotionEstimator, MotionParams};
+use unshear::internals::MotionEstimator;
+use unshear::video::MotionParams;
 
 /// A smooth random texture (sums of sinusoids), shifted right by `dx`.
 fn frame(w: u32, h: u32, dx: f64) -> GrayImage {

@@ -362,7 +362,7 @@ fn whole_frames(
                     if !options.changes(&report) {
                         return;
                     }
-                    let fixed = match unshear.correct(&img, &report, &options) {
+                    let fixed = match Unshear::correct(&img, &report, &options) {
                         Ok(f) => f,
                         Err(e) => panic!("correct: {e}"),
                     };

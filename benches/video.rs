@@ -185,7 +185,7 @@ fn bench_pan(c: &mut Criterion) {
         (
             "motion_calibrated",
             ProcessOptions {
-                calibration_window: unshear::video::process::DEFAULT_CALIBRATION_WINDOW,
+                calibration_window: unshear::video::DEFAULT_CALIBRATION_WINDOW,
                 ..base
             },
         ),

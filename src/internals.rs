@@ -8,3 +8,5 @@ pub use crate::locate::filters::{
     EYE_CANDIDATES, EYE_PAIR_FEATURES,
 };
 pub use crate::stats::median;
+pub use crate::video::motion::{region_shift, BandShift, FrameShift, MotionEstimator};
+pub use crate::video::temporal::{ShearFilter, ShearSmoother};

@@ -141,7 +141,7 @@ fn sheared_face(face: usize, k: f64) -> GrayImage {
 /// The measured shear (refused or not: these properties are of the estimator, not of the
 /// confidence threshold).
 fn k_of(img: &GrayImage) -> Option<f64> {
-    common::median(
+    finite_median(
         unshear()
             .estimate_gray(img)
             .faces
@@ -222,6 +222,21 @@ proptest! {
         };
         prop_assert!((a + b).abs() <= MIRROR_TOLERANCE, "{a} vs {b}");
     }
+}
+
+/// The median of the finite values, `None` when there are none.
+fn finite_median(mut values: Vec<f64>) -> Option<f64> {
+    values.retain(|v| v.is_finite());
+    if values.is_empty() {
+        return None;
+    }
+    values.sort_by(f64::total_cmp);
+    let n = values.len();
+    Some(if n % 2 == 1 {
+        values[n / 2]
+    } else {
+        (values[n / 2 - 1] + values[n / 2]) / 2.0
+    })
 }
 
 fn median(mut v: Vec<f64>) -> f64 {

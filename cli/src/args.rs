@@ -725,7 +725,7 @@ pub struct VideoArgs {
     /// Smooth k over this many later frames (a fixed-lag smoother): each frame is corrected
     /// once N more frames have been estimated, so output lags input by N frames (0: the causal
     /// filter, no delay).
-    #[arg(allow_negative_numbers = true, long, value_name = "N", default_value_t = unshear::video::temporal::DEFAULT_SMOOTHING_LAG)]
+    #[arg(allow_negative_numbers = true, long, value_name = "N", default_value_t = unshear::video::DEFAULT_SMOOTHING_LAG)]
     pub smoothing_lag: usize,
     /// Without a face, hold the filtered k for this many seconds...
     #[arg(
@@ -798,7 +798,7 @@ pub struct VideoArgs {
         help_heading = "Rolling-shutter model",
         long,
         value_name = "N",
-        default_value_t = unshear::video::process::DEFAULT_CALIBRATION_WINDOW
+        default_value_t = unshear::video::DEFAULT_CALIBRATION_WINDOW
     )]
     pub calibration_window: usize,
     #[command(flatten)]
@@ -831,7 +831,7 @@ pub struct CalibrateArgs {
 /// A readout fraction in (0, 1.2].
 fn readout_fraction(s: &str) -> Result<f64, String> {
     let v: f64 = s.parse().map_err(|e| format!("{e}"))?;
-    unshear::video::readout::check_readout_fraction(v).map_err(|e| e.to_string())
+    unshear::video::check_readout_fraction(v).map_err(|e| e.to_string())
 }
 
 /// A finite number above 0.

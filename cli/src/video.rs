@@ -30,9 +30,9 @@ use crate::report::{face, r4, JsonFace};
 use crate::{create_parent, interrupt, output_key, usage_error};
 use unshear::imageio::WriteOptions;
 use unshear::video::frames::{frame_gaps, list_frames, FrameFolderReader, FrameFolderWriter};
-use unshear::video::temporal::FilterParams;
-use unshear::video::tracker::TrackerParams;
 use unshear::video::y4m::{Y4mReader, Y4mWriter};
+use unshear::video::FilterParams;
+use unshear::video::TrackerParams;
 use unshear::video::{
     run, Chroma, FrameResult, FrameSink, FrameSource, KSource, ProcessOptions, RunStats,
     ShearSource, VideoFormat, VideoProcessor,
@@ -370,7 +370,7 @@ fn print_calibration(stats: &RunStats, fps: f64, json: bool) -> bool {
     // A fit whose uncertainty is half its value or more says nothing: the faces hardly moved.
     let found = c.filter(|c| {
         c.readout_fraction > 0.0
-            && c.readout_fraction <= unshear::video::readout::MAX_READOUT_FRACTION
+            && c.readout_fraction <= unshear::video::MAX_READOUT_FRACTION
             && c.uncertainty < 0.5 * c.readout_fraction
     });
     let reason = match (c, found) {
@@ -523,7 +523,7 @@ fn video_or_calibrate(a: VideoArgs, calibrate: Option<bool>) -> Result<bool> {
         (Some(rho), _) => Some(rho),
         (None, Some(ms)) => {
             let rho = ms * fps / 1000.0;
-            if unshear::video::readout::check_readout_fraction(rho).is_err() {
+            if unshear::video::check_readout_fraction(rho).is_err() {
                 usage_error(&format!(
                     "--readout-ms {ms} at {fps:.3} frames/s is a readout fraction of {rho:.3}, \
                      outside (0, 1.2]: a sensor reads its rows within the frame interval"

@@ -454,7 +454,8 @@ fn image_frames_are_corrected_like_images() {
 /// (UNSHEAR_TUNE=1). The raw estimates do not depend on the lag (the tracker and the estimator
 /// start from the causal filter's k), so this replays the pipeline exactly.
 fn tune(results: &[FrameResult], frames: &[(GrayImage, f64)]) {
-    use unshear::video::temporal::{FilterParams, ShearFilter, ShearSmoother};
+    use unshear::internals::{ShearFilter, ShearSmoother};
+    use unshear::video::FilterParams;
     for ms in [0.015, 0.02, 0.03] {
         for acc in [0.003, 0.005, 0.01, 0.015] {
             for lag in [0, 1, 2, 3, 4, 5, 6, 8, 10, 12, 16, 24] {

@@ -77,7 +77,7 @@ pub fn readout_fraction(value: &Bound<'_, PyAny>) -> PyResult<Option<f64>> {
         return Ok(None);
     }
     let x = real("readout_fraction", value)?;
-    unshear::video::readout::check_readout_fraction(x)
+    unshear::video::check_readout_fraction(x)
         .map(Some)
         .map_err(|e| PyValueError::new_err(e.to_string()))
 }

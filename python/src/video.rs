@@ -8,8 +8,8 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyType};
 
 use unshear::imageio::DEFAULT_MAX_PIXELS;
-use unshear::video::temporal::FilterParams;
-use unshear::video::tracker::TrackerParams;
+use unshear::video::FilterParams;
+use unshear::video::TrackerParams;
 use unshear::video::{
     FrameResult, KSource, ProcessOptions, ShearSource, VideoFrame, VideoProcessor,
 };
@@ -231,7 +231,7 @@ impl VideoCorrector {
     #[pyo3(signature = (
         *,
         fps = 25.0,
-        smoothing_lag = unshear::video::temporal::DEFAULT_SMOOTHING_LAG,
+        smoothing_lag = unshear::video::DEFAULT_SMOOTHING_LAG,
         redetect = None,
         lost_interval = 5,
         detect_width = 640,

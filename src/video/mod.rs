@@ -14,16 +14,16 @@
 //!   `y4m` crate behind a header check that bounds the frame size before anything is allocated,
 //!   written with the input's own header so that an unmodified stream round-trips byte for byte.
 //! * [`frames`]: folders of numbered still images in and out.
-//! * [`motion`]: the content's displacement between consecutive frames, band of rows by band of
+//! * `motion`: the content's displacement between consecutive frames, band of rows by band of
 //!   rows (phase correlation, then robust least squares), with an uncertainty.
-//! * [`readout`]: the rolling-shutter model: the velocity through a frame's readout fitted to the
+//! * `readout`: the rolling-shutter model: the velocity through a frame's readout fitted to the
 //!   bands, each row's offset, and the readout fraction calibrated from the faces.
-//! * [`tracker`]: faces followed from frame to frame in a window around their last position, with
+//! * `tracker`: faces followed from frame to frame in a window around their last position, with
 //!   a full (down-scaled) detection every N frames or when the track is lost.
-//! * [`temporal`]: a constant-velocity Kalman filter on `k` with innovation gating, and a
+//! * `temporal`: a constant-velocity Kalman filter on `k` with innovation gating, and a
 //!   fixed-lag smoother over it (each frame's `k` from the frames after it too, at a latency of
 //!   a few frames); without a face the filtered `k` is held, then decays to 0.
-//! * [`process`]: all of the above per frame ([`VideoProcessor`], which holds frames back
+//! * `process`: all of the above per frame ([`VideoProcessor`], which holds frames back
 //!   for the smoother's lag or the readout's calibration and flushes them at the end) and the
 //!   threaded read → process → write loop ([`run`]).
 //!
@@ -60,17 +60,21 @@
 
 pub mod color;
 pub mod frames;
-pub mod motion;
-pub mod process;
-pub mod readout;
-pub mod temporal;
-pub mod tracker;
+pub(crate) mod motion;
+pub(crate) mod process;
+pub(crate) mod readout;
+pub(crate) mod temporal;
+pub(crate) mod tracker;
 pub mod y4m;
 
+pub use motion::MotionParams;
 pub use process::{
     run, FrameResult, FrameSink, FrameSource, KSource, ProcessOptions, RunStats, ShearSource,
-    SourceCounts, VideoProcessor,
+    SourceCounts, VideoProcessor, DEFAULT_CALIBRATION_WINDOW,
 };
+pub use readout::{check_readout_fraction, Calibration, CalibrationParams, MAX_READOUT_FRACTION};
+pub use temporal::{FilterParams, Update, DEFAULT_SMOOTHING_LAG};
+pub use tracker::{TrackerParams, TrackerStats};
 
 use std::borrow::Cow;
 

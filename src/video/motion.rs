@@ -43,6 +43,7 @@ use rustfft::num_complex::Complex32;
 use rustfft::{Fft, FftPlanner};
 use serde::{Deserialize, Serialize};
 
+#[cfg(any(test, feature = "dev"))]
 use crate::geometry::Rect;
 use crate::{Error, Result};
 
@@ -86,7 +87,7 @@ const SIGMA_SCALE: f64 = 1.0;
 /// texture's aliasing in the reduced frame, the interpolation).
 const SIGMA_FLOOR: f64 = 0.02;
 
-/// Settings of the [`MotionEstimator`].
+/// Settings of the frame-to-frame motion measurement.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct MotionParams {
     /// Reduce frames to at most this many columns before correlating (by a whole factor, so
@@ -239,12 +240,14 @@ impl MotionEstimator {
     }
 
     /// An estimator, or an error when `params` are outside their valid ranges.
+    #[cfg_attr(not(feature = "dev"), allow(dead_code))]
     pub fn try_new(params: MotionParams) -> Result<Self> {
         params.validate()?;
         Ok(Self::new(params))
     }
 
     /// The settings in force.
+    #[cfg_attr(not(feature = "dev"), allow(dead_code))]
     pub fn params(&self) -> MotionParams {
         self.params
     }
@@ -289,6 +292,7 @@ impl MotionEstimator {
     }
 
     /// Forgets the previous frame (the next push starts a new sequence; buffers are kept).
+    #[cfg_attr(not(feature = "dev"), allow(dead_code))]
     pub fn reset(&mut self) {
         if let Some(s) = self.state.as_mut() {
             s.has_prev = false;
@@ -1272,6 +1276,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 /// Largest side, in pixels, of the correlated patches of [`region_shift`]: larger regions are
 /// reduced by a whole factor first (the refinement then runs at full resolution).
+#[cfg(any(test, feature = "dev"))]
 const REGION_MAX_SIDE: usize = 128;
 
 /// Displacement of the content of `region` (e.g. a face box, full-resolution pixels of `prev`)
@@ -1282,6 +1287,7 @@ const REGION_MAX_SIDE: usize = 128;
 /// refinement at full resolution; `row` of the result is the region's textured centre row.
 /// `None` when the images differ in size, the region lies (mostly) outside `prev`, an argument
 /// is not finite, or the peak is not clear.
+#[cfg(any(test, feature = "dev"))]
 pub fn region_shift(
     prev: &GrayImage,
     cur: &GrayImage,
@@ -1411,6 +1417,7 @@ pub fn region_shift(
 
 /// The `w x h` window of `gray` at `(x0, y0)` reduced by `f` (block means), as `f32`, with
 /// pixels outside the image replaced by the nearest edge pixel.
+#[cfg(any(test, feature = "dev"))]
 fn crop_reduced(gray: &GrayImage, x0: isize, y0: isize, w: usize, h: usize, f: usize) -> Vec<f32> {
     let (iw, ih) = (gray.width() as isize, gray.height() as isize);
     let raw = gray.as_raw();

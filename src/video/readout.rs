@@ -114,6 +114,7 @@ const FIT_BANDWIDTH: f64 = 1.5;
 
 impl VelocityCurve {
     /// A constant velocity.
+    #[cfg(test)]
     pub fn constant(vx: f64, vy: f64) -> Self {
         Self {
             t0: 0.0,
@@ -302,6 +303,7 @@ impl RowMotion {
 
     /// The largest difference between these shifts and the straight line of a single shear
     /// `k` about the middle row, pixels: how much a per-row correction adds.
+    #[cfg(test)]
     pub fn curvature(&self) -> f64 {
         let c = self.shifts.len() as f64 / 2.0;
         self.shifts
@@ -349,7 +351,7 @@ impl Calibration {
     }
 }
 
-/// Settings of [`ReadoutCalibrator`].
+/// Settings of the readout's calibration from the faces.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CalibrationParams {
     /// The typical error of one face's shear reading in one frame (1 sigma).
@@ -419,16 +421,6 @@ impl ReadoutCalibrator {
         {
             self.samples.push(sample);
         }
-    }
-
-    /// Readings added so far.
-    pub fn len(&self) -> usize {
-        self.samples.len()
-    }
-
-    /// Whether no reading was added.
-    pub fn is_empty(&self) -> bool {
-        self.samples.is_empty()
     }
 
     /// The fit over every reading so far; `None` with fewer than 3 readings or when the
@@ -516,6 +508,7 @@ impl ReadoutCalibrator {
 
     /// The fit, when it is good enough to correct by: enough readings, `rho` inside
     /// `(0, 1.2]` and known to [`CalibrationParams::max_relative_uncertainty`].
+    #[cfg(test)]
     pub fn known(&self) -> Option<Calibration> {
         self.solve().filter(|c| self.params.is_known(c))
     }

@@ -296,7 +296,7 @@ impl ShearFilter {
     }
 }
 
-/// The default lag of [`ShearSmoother`], in frames (see the module docs for how it was chosen).
+/// The default lag of the fixed-lag smoother, in frames (see the module docs for how it was chosen).
 pub const DEFAULT_SMOOTHING_LAG: usize = 6;
 
 /// A fixed-lag Rauch–Tung–Striebel smoother on top of [`ShearFilter`] (see the module docs).
@@ -324,6 +324,7 @@ impl ShearSmoother {
     }
 
     /// The lag, in frames.
+    #[cfg_attr(not(feature = "dev"), allow(dead_code))]
     pub fn lag(&self) -> usize {
         self.lag
     }
@@ -334,6 +335,7 @@ impl ShearSmoother {
     }
 
     /// Frames pushed but not emitted yet.
+    #[cfg_attr(not(feature = "dev"), allow(dead_code))]
     pub fn pending(&self) -> usize {
         self.window.len()
     }

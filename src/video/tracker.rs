@@ -49,7 +49,7 @@ pub const NETWORK_REDETECT_INTERVAL: u64 = 5;
 impl TrackerParams {
     /// The defaults for a corrector whose faces the network detector finds (`network`, see
     /// [`crate::Unshear::uses_network_detector`]): full detection every
-    /// [`NETWORK_REDETECT_INTERVAL`] frames; otherwise as [`TrackerParams::default`] (every 30,
+    /// `NETWORK_REDETECT_INTERVAL` frames; otherwise as [`TrackerParams::default`] (every 30,
     /// the cascade being slower).
     pub fn for_detector(network: bool) -> Self {
         let mut params = Self::default();

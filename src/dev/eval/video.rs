@@ -17,8 +17,8 @@ use serde::Serialize;
 
 use crate::dev::simulate::{FrameTruth, Profile, Scene, SimulationParams, Simulator};
 use crate::video::color::image_to_yuv;
-use crate::video::temporal::FilterParams;
-use crate::video::tracker::TrackerParams;
+use crate::video::FilterParams;
+use crate::video::TrackerParams;
 use crate::video::{Chroma, FrameResult, ProcessOptions, ShearSource, VideoFrame, VideoProcessor};
 use crate::{Result, Unshear};
 
@@ -121,7 +121,7 @@ impl Default for VideoEvalOptions {
             noise: 2.0,
             clips: 2,
             skip: 30,
-            calibration_window: crate::video::process::DEFAULT_CALIBRATION_WINDOW,
+            calibration_window: crate::video::DEFAULT_CALIBRATION_WINDOW,
             seed: 1,
         }
     }
