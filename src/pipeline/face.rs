@@ -9,7 +9,7 @@ use super::confidence::{
     confidence, network_confidence, plausibility, ConfidenceModel, Doubt, LocatedPoints,
 };
 use super::report::{FaceReport, Refusal};
-use super::search::Detection;
+use super::viola_jones_search::Detection;
 use super::Unshear;
 use crate::config::Locator;
 use crate::detect::boxes::{eyes_of_box, face_box_from_eyes, EYE_DISTANCE_PER_BOX_WIDTH};

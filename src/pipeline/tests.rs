@@ -1,16 +1,19 @@
 use super::combine::{combined_shear, consensus, holds_eyes, most_confident_of_overlapping};
-use super::proposals::{
-    network_windows, network_windows_desheared, proposal_detection, proposal_eyes, proposal_is_new,
-    proposal_shows, settle_unsure_faces, window_is_new, HIDING_MIN_CONFIDENCE,
+use super::network_search::{
+    measured_view_min_width, network_windows, network_windows_desheared, settle_unsure_faces,
+    window_is_new, DoubtfulWindow, HIDING_MIN_CONFIDENCE,
 };
-use super::search::{
+use super::proposals::{proposal_detection, proposal_eyes, proposal_is_new, proposal_shows};
+use super::viola_jones_search::{
     overlapping_groups, strongest_of_overlapping, tries_of_group, View, THOROUGH_BOX_TRIES,
     THOROUGH_HALF_STEP_LADDER, TURNED_DESHEARED_MIN_ROLL, TURNED_DESHEARED_SHEARS,
 };
 use super::*;
+use crate::config::MIN_NETWORK_FACE;
 use crate::detect::boxes::{
     box_around_eyes, eyes_in_box, scaled_about_centre, EYE_DISTANCE_PER_BOX_WIDTH,
 };
+use crate::geometry::Point;
 use crate::locate::filters::{NormalizedFace, FACE_WIDTH};
 
 /// A corrector with the built-in models.
