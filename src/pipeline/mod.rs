@@ -36,6 +36,7 @@ pub use correct::FACE_REGION_MARGIN;
 pub use face::FaceStart;
 pub use network_search::{NETWORK_DETECTOR_MAX_ROLL, ROLLED_HEAD, ROLLED_HEAD_MAX_SHEAR};
 pub use proposals::{box_from_eyes, follows, FOLLOW_MAX_MOVE, FOLLOW_MAX_SCALE};
+pub(crate) use report::FoundBox;
 pub use report::{CorrectOptions, FaceReport, ImageReport, Readout, Refusal, Region};
 pub use viola_jones_search::{
     Detection, DEFAULT_ROLL_HYPOTHESES, DEFAULT_SHEAR_HYPOTHESES, MAX_VIEW_PIXELS_RATIO,
@@ -47,7 +48,6 @@ pub use crate::config::{Detector, FaceSearch, Locator};
 use crate::detect::{Cascade, FaceDetector, ProposalNet};
 use crate::error::Result;
 use crate::filters::{EyeFilters, FilterType};
-use crate::geometry::Rect;
 use crate::locate::network::LandmarkNet;
 use viola_jones_search::{
     FallbackDetector, ThoroughDetectors, THOROUGH_MIN_NEIGHBORS,
@@ -284,7 +284,7 @@ impl Unshear {
         let mut faces: Vec<FaceReport> = self
             .detect_and_estimate(gray)
             .into_iter()
-            .filter_map(|(_, face)| face)
+            .filter_map(|found| found.report)
             .collect();
         let consensus = mark_consensus(&mut faces);
         ImageReport {
@@ -307,7 +307,7 @@ impl Unshear {
     /// every view at once with the thorough search or [`Config::search_every_view`]
     /// ([`Self::every_view_search`]), and otherwise the image as it is first
     /// ([`Self::quick_search`]).
-    pub(crate) fn detect_and_estimate(&self, gray: &GrayImage) -> Vec<(Rect, Option<FaceReport>)> {
+    pub(crate) fn detect_and_estimate(&self, gray: &GrayImage) -> Vec<FoundBox> {
         if let Some(net) = self.network_detector() {
             self.network_search(net, gray)
         } else if self.config.search_every_view || self.thorough_detectors().is_some() {

@@ -8,12 +8,12 @@ use rayon::prelude::*;
 use super::combine::{
     holds_eyes, measured_shear, most_confident_of_overlapping, smaller_eye_distance,
 };
-use super::face::{FaceStart, MIN_FACE_SCORE};
+use super::face::{BoxReading, FaceStart, MIN_FACE_SCORE};
 use super::proposals::{
     hides, proposal_detection, proposal_detection_in, proposal_eyes, proposal_is_new,
     proposal_shows, scored_proposal_detections,
 };
-use super::report::{FaceReport, Refusal};
+use super::report::{FaceReport, FoundBox, Refusal};
 use super::viola_jones_search::{
     desheared_view, Detection, MEASURED_VIEW_MIN_SHEAR, NEAR_MISS_MIN_FACE_SCORE,
 };
@@ -98,9 +98,9 @@ pub(crate) fn hides_windows(face: &FaceReport) -> bool {
 /// ([`hides_windows`]) hides a window of about its size; any face hides the windows on its parts
 /// much smaller than itself. A window an unsure face does not hide is looked at, and its face
 /// settled against that one by [`settle_unsure_faces`].
-pub(crate) fn window_is_new(window: &Detection, found: &[(Rect, Option<FaceReport>)]) -> bool {
-    found.iter().all(|(_, r)| {
-        r.is_none_or(|r| {
+pub(crate) fn window_is_new(window: &Detection, found: &[FoundBox]) -> bool {
+    found.iter().all(|f| {
+        f.report.is_none_or(|r| {
             let (hidden, much_larger) = hides(window, &r);
             !(hidden && (much_larger || hides_windows(&r)))
         })
@@ -125,27 +125,31 @@ fn same_eyes(a: &FaceReport, b: &FaceReport) -> bool {
 /// read again, whose first reading's doubt stands; seen on a small face at a photo's edge,
 /// refused for its pose, then read from another window with confidence 0.8 and a shear 0.28
 /// off); any other face is dropped (the first reading of a spot stands).
-pub(crate) fn settle_unsure_faces(found: &mut Vec<(Rect, Option<FaceReport>)>, first_new: usize) {
+pub(crate) fn settle_unsure_faces(found: &mut Vec<FoundBox>, first_new: usize) {
     let mut i = first_new;
     while i < found.len() {
-        let (b, Some(r)) = found[i] else {
+        let FoundBox {
+            face_box: b,
+            report: Some(r),
+        } = found[i]
+        else {
             i += 1;
             continue;
         };
         let window = proposal_detection_in(b);
         let hiding: Vec<usize> = (0..i)
-            .filter(|&j| found[j].1.is_some_and(|h| hides(&window, &h).0))
+            .filter(|&j| found[j].report.is_some_and(|h| hides(&window, &h).0))
             .collect();
         if hiding.is_empty() {
             i += 1;
         } else if hides_windows(&r)
             && !hiding
                 .iter()
-                .any(|&j| found[j].1.is_some_and(|h| same_eyes(&h, &r)))
+                .any(|&j| found[j].report.is_some_and(|h| same_eyes(&h, &r)))
         {
             let unsure: Vec<usize> = hiding
                 .into_iter()
-                .filter(|&j| found[j].1.is_some_and(|h| !hides_windows(&h)))
+                .filter(|&j| found[j].report.is_some_and(|h| !hides_windows(&h)))
                 .collect();
             for &j in unsure.iter().rev() {
                 found.remove(j);
@@ -234,12 +238,8 @@ impl Unshear {
     /// image de-sheared by the shear the faces found measured ([`Self::judge_measured_view`]),
     /// then the last resort for the windows read doubtfully
     /// ([`Self::judge_doubtful_windows`]); of overlapping faces the most confident.
-    pub(crate) fn network_search(
-        &self,
-        net: &ProposalNet,
-        gray: &GrayImage,
-    ) -> Vec<(Rect, Option<FaceReport>)> {
-        let mut all: Vec<(Rect, Option<FaceReport>)> = Vec::new();
+    pub(crate) fn network_search(&self, net: &ProposalNet, gray: &GrayImage) -> Vec<FoundBox> {
+        let mut all: Vec<FoundBox> = Vec::new();
         let min_width = f64::from(self.config.min_face);
         let windows = network_windows(net, gray, min_width);
         let budget = self.config.network_budget;
@@ -267,7 +267,7 @@ impl Unshear {
         windows: Vec<(Detection, f32)>,
         start_k: Option<f64>,
         budget: Budget,
-        found: &mut Vec<(Rect, Option<FaceReport>)>,
+        found: &mut Vec<FoundBox>,
     ) -> Vec<DoubtfulWindow> {
         let first_new = found.len();
         // The logit of the window that found each face of `found`; the faces found before
@@ -276,20 +276,19 @@ impl Unshear {
         let mut second_looks = Vec::new();
         let looks = self.look_at_windows(gray, &windows, start_k, budget, found);
         let mut doubtful = Vec::new();
-        for ((d, logit), (look, doubt)) in windows.iter().zip(looks) {
-            if doubt {
-                doubtful.push(DoubtfulWindow {
+        for ((d, logit), look) in windows.iter().zip(looks) {
+            match look {
+                BoxReading::Doubtful => doubtful.push(DoubtfulWindow {
                     window: *d,
                     logit: *logit,
                     start_k,
-                });
-            }
-            match look {
-                Some(r) if proposal_shows(d, &r) => {
-                    found.push((d.face_box, Some(r)));
+                }),
+                BoxReading::NoFace => {}
+                BoxReading::Face(r) if proposal_shows(d, &r) => {
+                    found.push(FoundBox::face(d.face_box, r));
                     found_by.push(*logit);
                 }
-                Some(r) => {
+                BoxReading::Face(r) => {
                     let landed = Detection {
                         view_k: r.k_measured,
                         view_roll: r.roll_degrees.to_radians(),
@@ -300,7 +299,6 @@ impl Unshear {
                     };
                     second_looks.push((landed, *logit));
                 }
-                None => {}
             }
         }
         // After every window's own look, so that a second look landing on part of a face
@@ -321,7 +319,7 @@ impl Unshear {
         gray: &GrayImage,
         windows: &[DoubtfulWindow],
         budget: Budget,
-        found: &mut Vec<(Rect, Option<FaceReport>)>,
+        found: &mut Vec<FoundBox>,
     ) {
         let mut windows = windows.to_vec();
         windows.sort_by(|a, b| b.logit.total_cmp(&a.logit));
@@ -334,7 +332,7 @@ impl Unshear {
                 roll: w.window.view_roll,
                 budget: Some(budget),
             };
-            let Ok(r) = self.read_box(gray, w.window.face_box, start, true) else {
+            let BoxReading::Face(r) = self.read_box(gray, w.window.face_box, start, true) else {
                 continue;
             };
             let read = proposal_detection(
@@ -343,15 +341,17 @@ impl Unshear {
             );
             // Nor may its box hold a found face's eyes, or its eyes be in a found face's box:
             // a doubtful reading is no reason to nest two faces.
-            let apart = found.iter().all(|(b, f)| {
-                f.is_none_or(|f| !holds_eyes(&w.window.face_box, &f) && !holds_eyes(b, &r))
+            let apart = found.iter().all(|found| {
+                found.report.is_none_or(|f| {
+                    !holds_eyes(&w.window.face_box, &f) && !holds_eyes(&found.face_box, &r)
+                })
             });
             if window_is_face(w.logit, &r)
                 && proposal_shows(&w.window, &r)
                 && proposal_is_new(&read, found)
                 && apart
             {
-                found.push((w.window.face_box, Some(r)));
+                found.push(FoundBox::face(w.window.face_box, r));
             }
         }
     }
@@ -370,14 +370,14 @@ impl Unshear {
         gray: &GrayImage,
         min_width: f64,
         budget: Budget,
-        found: &mut Vec<(Rect, Option<FaceReport>)>,
+        found: &mut Vec<FoundBox>,
     ) -> Vec<DoubtfulWindow> {
         let Some(k) = measured_shear(found).filter(|k| k.abs() >= MEASURED_VIEW_MIN_SHEAR) else {
             return Vec::new();
         };
         let smallest = found
             .iter()
-            .filter_map(|(_, r)| r.map(|r| r.right_eye.distance(r.left_eye)))
+            .filter_map(|f| f.report.map(|r| r.right_eye.distance(r.left_eye)))
             .fold(f64::INFINITY, f64::min)
             / EYE_DISTANCE_PER_BOX_WIDTH;
         let step = net.default_params().scale_step;
@@ -398,11 +398,11 @@ impl Unshear {
         second_looks: &[(Detection, f32)],
         start_k: Option<f64>,
         budget: Budget,
-        found: &mut Vec<(Rect, Option<FaceReport>)>,
+        found: &mut Vec<FoundBox>,
         mut found_by: Vec<f32>,
     ) {
         // The faces a look from a window with `logit` defers to.
-        let stronger = |found: &[(Rect, Option<FaceReport>)], found_by: &[f32], logit: f32| {
+        let stronger = |found: &[FoundBox], found_by: &[f32], logit: f32| {
             let by_stronger = found.iter().zip(found_by).filter(|&(_, &by)| by >= logit);
             by_stronger.map(|(f, _)| *f).collect::<Vec<_>>()
         };
@@ -410,7 +410,7 @@ impl Unshear {
             .par_iter()
             .map(|(d, logit)| {
                 window_is_new(d, &stronger(found, &found_by, *logit))
-                    .then(|| self.look_at_window(gray, d, *logit, start_k, budget).0)
+                    .then(|| self.look_at_window(gray, d, *logit, start_k, budget).face())
                     .flatten()
             })
             .collect();
@@ -427,7 +427,7 @@ impl Unshear {
                 .filter(|&i| !window_is_new(d, &found[i..=i]))
                 .collect();
             let scores_higher = |i: &usize| {
-                let theirs = found[*i].1.and_then(|h| h.face_score);
+                let theirs = found[*i].report.and_then(|h| h.face_score);
                 matches!((r.face_score, theirs), (Some(s), Some(t)) if s > t)
             };
             if !hiding.iter().all(scores_higher) {
@@ -437,12 +437,12 @@ impl Unshear {
                 found.remove(i);
                 found_by.remove(i);
             }
-            found.push((d.face_box, Some(r)));
+            found.push(FoundBox::face(d.face_box, r));
             found_by.push(*logit);
         }
     }
 
-    /// [`Self::look_at_window`] for each of `windows` in order, `None` for a window on a face
+    /// [`Self::look_at_window`] for each of `windows` in order, no face for a window on a face
     /// in `found` ([`window_is_new`]) when its turn comes, exactly as looking at one window
     /// after the other and adding each face found to `found` before the next (as `commit`
     /// does). Looks are taken in waves on the thread pool: a wave holds the windows up to the
@@ -450,20 +450,19 @@ impl Unshear {
     /// once found, may hide it), so a frame's separate windows (a busy scene can give ten) do
     /// not wait for each other on one core, and no look is spent on a window its stronger
     /// neighbour's face will hide. Each look depends only on its window, so the results are
-    /// those of one window at a time. Each look comes with whether it was doubtful
-    /// ([`Self::look_at_window`]).
+    /// those of one window at a time.
     pub(super) fn look_at_windows(
         &self,
         gray: &GrayImage,
         windows: &[(Detection, f32)],
         start_k: Option<f64>,
         budget: Budget,
-        found: &[(Rect, Option<FaceReport>)],
-    ) -> Vec<(Option<FaceReport>, bool)> {
+        found: &[FoundBox],
+    ) -> Vec<BoxReading> {
         let mut found_now = found.to_vec();
         // Each window's look once taken (`Some`), and each window's outcome once decided.
-        let mut taken: Vec<Option<(Option<FaceReport>, bool)>> = vec![None; windows.len()];
-        let mut looks: Vec<(Option<FaceReport>, bool)> = Vec::with_capacity(windows.len());
+        let mut taken: Vec<Option<BoxReading>> = vec![None; windows.len()];
+        let mut looks: Vec<BoxReading> = Vec::with_capacity(windows.len());
         while looks.len() < windows.len() {
             let next = looks.len();
             // The wave: from `next` on, every window not looked at yet and still new that no
@@ -480,7 +479,7 @@ impl Unshear {
                         })
                 })
                 .collect();
-            let seen: Vec<(usize, (Option<FaceReport>, bool))> = wave
+            let seen: Vec<(usize, BoxReading)> = wave
                 .par_iter()
                 .map(|&j| {
                     let (d, logit) = &windows[j];
@@ -494,14 +493,14 @@ impl Unshear {
             // none).
             while let Some((d, _)) = windows.get(looks.len()) {
                 let look = if !window_is_new(d, &found_now) {
-                    (None, false)
+                    BoxReading::NoFace
                 } else if let Some(look) = taken[looks.len()].take() {
                     look
                 } else {
                     break;
                 };
-                if let Some(r) = look.0.filter(|r| proposal_shows(d, r)) {
-                    found_now.push((d.face_box, Some(r)));
+                if let Some(r) = look.face().filter(|r| proposal_shows(d, r)) {
+                    found_now.push(FoundBox::face(d.face_box, r));
                 }
                 looks.push(look);
             }
@@ -513,7 +512,7 @@ impl Unshear {
     /// `logit`), started from its shear (or `start_k`) and roll with `budget`, if the network
     /// finds a face there ([`window_is_face`]); strongly rolled ones refused
     /// ([`NETWORK_DETECTOR_MAX_ROLL`]), and rolled ones measured strongly sheared
-    /// ([`ROLLED_HEAD`]); with it, whether a window giving no face was read doubtfully
+    /// ([`ROLLED_HEAD`]); a window giving no face may have been read doubtfully
     /// ([`Unshear::read_box`]).
     pub(super) fn look_at_window(
         &self,
@@ -522,15 +521,15 @@ impl Unshear {
         logit: f32,
         start_k: Option<f64>,
         budget: Budget,
-    ) -> (Option<FaceReport>, bool) {
+    ) -> BoxReading {
         let start = FaceStart {
             k: start_k.unwrap_or(d.view_k),
             roll: d.view_roll,
             budget: Some(budget),
         };
         let mut r = match self.read_box(gray, d.face_box, start, false) {
-            Ok(r) => r,
-            Err(doubtful) => return (None, doubtful),
+            BoxReading::Face(r) => r,
+            other => return other,
         };
         let (roll, k) = (r.roll_degrees.abs(), r.k_measured.abs());
         let rolled_and_sheared = roll > ROLLED_HEAD && k > ROLLED_HEAD_MAX_SHEAR;
@@ -540,7 +539,11 @@ impl Unshear {
             r.k = None;
             r.refused = Some(Refusal::UnreliablePose);
         }
-        (window_is_face(logit, &r).then_some(r), false)
+        if window_is_face(logit, &r) {
+            BoxReading::Face(r)
+        } else {
+            BoxReading::NoFace
+        }
     }
 
     /// Whether the network detector finds the faces ([`Detector::Network`] with the network
@@ -559,7 +562,7 @@ impl Unshear {
         detect_width: u32,
         start_k: f64,
         budget: Budget,
-        found: &mut Vec<(Rect, Option<FaceReport>)>,
+        found: &mut Vec<FoundBox>,
     ) {
         let Some(net) = self.network_detector() else {
             return;

@@ -5,7 +5,7 @@
 use image::GrayImage;
 
 use super::combine::holds_eyes;
-use super::report::FaceReport;
+use super::report::{FaceReport, FoundBox};
 use super::viola_jones_search::Detection;
 use crate::detect::boxes::{box_around_eyes, eyes_in_box, EYE_DISTANCE_PER_BOX_WIDTH};
 use crate::detect::{ProposalNet, ProposalParams};
@@ -47,10 +47,10 @@ pub(crate) fn hides(proposal: &Detection, r: &FaceReport) -> (bool, bool) {
 
 /// Whether a proposal may show a face not among `found`: no face found hides it (see
 /// [`hides`]).
-pub(crate) fn proposal_is_new(proposal: &Detection, found: &[(Rect, Option<FaceReport>)]) -> bool {
+pub(crate) fn proposal_is_new(proposal: &Detection, found: &[FoundBox]) -> bool {
     found
         .iter()
-        .all(|(_, r)| r.is_none_or(|r| !hides(proposal, &r).0))
+        .all(|f| f.report.is_none_or(|r| !hides(proposal, &r).0))
 }
 
 /// Whether the face the network located from a proposal (see [`proposal_detections`]) is the

@@ -109,6 +109,26 @@ pub struct FaceReport {
     pub face_score: Option<f64>,
 }
 
+/// A face box the search found and the face read in it, if the box gave one (the evaluation
+/// tells a face not found from one found without an estimate).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct FoundBox {
+    /// The box, input-image pixels.
+    pub(crate) face_box: Rect,
+    /// The face read in it, if any.
+    pub(crate) report: Option<FaceReport>,
+}
+
+impl FoundBox {
+    /// The box `face_box` that gave the face `report`.
+    pub(crate) fn face(face_box: Rect, report: FaceReport) -> Self {
+        Self {
+            face_box,
+            report: Some(report),
+        }
+    }
+}
+
 /// Which way the camera read the picture out, and so which way `k` shears it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]

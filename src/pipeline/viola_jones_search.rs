@@ -8,7 +8,7 @@ use rayon::prelude::*;
 
 use super::combine::{measured_shear, most_confident_of_overlapping};
 use super::proposals::{proposal_detections, proposal_is_new, proposal_shows};
-use super::report::FaceReport;
+use super::report::FoundBox;
 use super::Unshear;
 use crate::config::Locator;
 use crate::detect::boxes::{box_around_eyes, eyes_in_box, scaled_about_centre};
@@ -412,7 +412,7 @@ impl Unshear {
     /// [`MEASURED_VIEW_MIN_SHEAR`], or with each of [`TURNED_DESHEARED_SHEARS`] when no face was
     /// accepted; none when the faces found measure no shear. Each keeps its turned view's scale
     /// ladder (OpenCV's).
-    pub(crate) fn turned_desheared_views(&self, found: &[(Rect, Option<FaceReport>)]) -> Vec<View> {
+    pub(crate) fn turned_desheared_views(&self, found: &[FoundBox]) -> Vec<View> {
         let shears = match measured_shear(found) {
             Some(k) if k.abs() >= MEASURED_VIEW_MIN_SHEAR => vec![k],
             Some(_) => return Vec::new(),
@@ -441,7 +441,7 @@ impl Unshear {
     pub(crate) fn detections_in_measured_view(
         &self,
         gray: &GrayImage,
-        found: &[(Rect, Option<FaceReport>)],
+        found: &[FoundBox],
     ) -> Vec<Detection> {
         let Some(k) = measured_shear(found) else {
             return Vec::new();
@@ -451,7 +451,7 @@ impl Unshear {
         }
         self.detect_under_hypotheses((&self.detector, 1.0), gray, &[(k, 0.0)])
             .into_iter()
-            .filter(|d| found.iter().all(|(b, _)| b.iou(&d.face_box) < 0.3))
+            .filter(|d| found.iter().all(|f| f.face_box.iou(&d.face_box) < 0.3))
             .collect()
     }
 
@@ -463,8 +463,8 @@ impl Unshear {
     /// image de-sheared by the shear its faces measured (or one step each way if none was
     /// accepted): a face both rolled and sheared is upright in neither kind of view alone. Of
     /// overlapping faces the one with the higher confidence is kept.
-    pub(crate) fn every_view_search(&self, gray: &GrayImage) -> Vec<(Rect, Option<FaceReport>)> {
-        let mut all: Vec<(Rect, Option<FaceReport>)> = Vec::new();
+    pub(crate) fn every_view_search(&self, gray: &GrayImage) -> Vec<FoundBox> {
+        let mut all: Vec<FoundBox> = Vec::new();
         let thorough = self.thorough_detectors();
 
         // A face is the first of its group's boxes that the network takes for one: the
@@ -496,9 +496,13 @@ impl Unshear {
                     if !proposal_is_new(&d, &all) {
                         continue;
                     }
-                    if let Some((b, Some(r))) = self.estimate_box(gray, d) {
+                    if let Some(FoundBox {
+                        face_box,
+                        report: Some(r),
+                    }) = self.estimate_box(gray, d)
+                    {
                         if proposal_shows(&d, &r) {
-                            all.push((b, Some(r)));
+                            all.push(FoundBox::face(face_box, r));
                         }
                     }
                 }
@@ -514,7 +518,7 @@ impl Unshear {
                 // holding the eyes of a face already found is that face again.
                 let found_eyes: Vec<(Point, Point)> = all
                     .iter()
-                    .filter_map(|(_, r)| r.map(|r| (r.right_eye, r.left_eye)))
+                    .filter_map(|f| f.report.map(|r| (r.right_eye, r.left_eye)))
                     .collect();
                 let holds_found = |b: &Rect| {
                     found_eyes
@@ -526,7 +530,7 @@ impl Unshear {
                 // The boxes kept hold no found face; the face a box gave may still be one.
                 let new = faces(found)
                     .into_iter()
-                    .filter(|(_, r)| !r.as_ref().is_some_and(|r| holds_found(&r.face_box)));
+                    .filter(|f| !f.report.is_some_and(|r| holds_found(&r.face_box)));
                 all.extend(new.collect::<Vec<_>>());
             }
         }
@@ -543,8 +547,8 @@ impl Unshear {
     /// When the main detector's faces (as they are and in the retries) still give no accepted
     /// estimate, the fallback detector, if set, goes through the same two steps and its faces
     /// join the others.
-    pub(crate) fn quick_search(&self, gray: &GrayImage) -> Vec<(Rect, Option<FaceReport>)> {
-        let mut all: Vec<(Rect, Option<FaceReport>)> = Vec::new();
+    pub(crate) fn quick_search(&self, gray: &GrayImage) -> Vec<FoundBox> {
+        let mut all: Vec<FoundBox> = Vec::new();
         for (i, pass) in self.detector_passes().enumerate() {
             all.extend(
                 self.detect_as_is(pass, gray)
@@ -596,20 +600,23 @@ impl Unshear {
     /// when the box gives no face (its face score below the minimum, or no crop): the network
     /// looked and saw no face there. A near miss stands as a face only on the network's strong
     /// word ([`NEAR_MISS_MIN_FACE_SCORE`]).
-    fn estimate_box(&self, gray: &GrayImage, d: Detection) -> Option<(Rect, Option<FaceReport>)> {
+    fn estimate_box(&self, gray: &GrayImage, d: Detection) -> Option<FoundBox> {
         let network = self.locator() == Locator::Network;
         let report = self.estimate_detection(gray, &d).filter(|r| {
             !d.near_miss || r.face_score.is_some_and(|s| s >= NEAR_MISS_MIN_FACE_SCORE)
         });
-        (!network || report.is_some()).then_some((d.face_box, report))
+        (!network || report.is_some()).then_some(FoundBox {
+            face_box: d.face_box,
+            report,
+        })
     }
 }
 
 /// Whether any face of `found` has an accepted estimate.
-fn any_accepted(found: &[(Rect, Option<FaceReport>)]) -> bool {
+fn any_accepted(found: &[FoundBox]) -> bool {
     found
         .iter()
-        .any(|(_, r)| r.as_ref().is_some_and(|r| r.k.is_some()))
+        .any(|f| f.report.is_some_and(|r| r.k.is_some()))
 }
 
 /// Where a point of a de-sheared view ([`desheared_view`]) is in the image it was made from.
