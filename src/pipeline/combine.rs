@@ -121,11 +121,11 @@ pub(crate) fn measured_shear(found: &[FoundBox]) -> Option<f64> {
 /// expected in. The confidence is a model of the chance that the estimate is within 0.10 of the
 /// truth, so two accepted faces whose estimates are more than twice this apart cannot both be
 /// right.
-pub const FACE_UNCERTAINTY: f64 = 0.10;
+pub(crate) const FACE_UNCERTAINTY: f64 = 0.10;
 
 /// The image's shear from its faces, and which faces disagree with it.
 #[derive(Debug, Clone, PartialEq, Default)]
-pub struct Consensus {
+pub(crate) struct Consensus {
     /// The confidence-weighted median of the consistent majority, `None` when no face has an
     /// accepted estimate or no consistent group outweighs the rest.
     pub k: Option<f64>,
@@ -142,7 +142,7 @@ pub struct Consensus {
 /// within [`FACE_UNCERTAINTY`] of every face of the group, and the faces outside it are
 /// outvoted; otherwise the faces disagree and the image gets no shear (a wrong correction is
 /// worse than none). One face, or faces that all agree, is its own majority.
-pub fn consensus(faces: &[FaceReport]) -> Consensus {
+pub(crate) fn consensus(faces: &[FaceReport]) -> Consensus {
     let accepted: Vec<(usize, f64, f64)> = faces
         .iter()
         .enumerate()
@@ -200,12 +200,12 @@ pub fn consensus(faces: &[FaceReport]) -> Consensus {
 /// median of the consistent majority, robust to a minority of faces whose features were
 /// mislocated. Faces with refused estimates do not count; `None` when no face has an accepted
 /// estimate or the faces disagree with no majority.
-pub fn combined_shear(faces: &[FaceReport]) -> Option<f64> {
+pub(crate) fn combined_shear(faces: &[FaceReport]) -> Option<f64> {
     consensus(faces).k
 }
 
 /// [`consensus`] of `faces`, with the faces it outvotes marked so (`outvoted`).
-pub fn mark_consensus(faces: &mut [FaceReport]) -> Consensus {
+pub(crate) fn mark_consensus(faces: &mut [FaceReport]) -> Consensus {
     let consensus = consensus(faces);
     for &i in &consensus.outvoted {
         faces[i].outvoted = true;

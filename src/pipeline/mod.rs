@@ -19,7 +19,7 @@
 //! ```
 
 mod combine;
-pub mod confidence;
+pub(crate) mod confidence;
 mod correct;
 mod face;
 mod network_search;
@@ -31,16 +31,17 @@ mod viola_jones_search;
 
 use image::{DynamicImage, GrayImage};
 
-pub use combine::{combined_shear, consensus, mark_consensus, Consensus, FACE_UNCERTAINTY};
-pub use correct::FACE_REGION_MARGIN;
+pub(crate) use combine::combined_shear;
+use combine::mark_consensus;
+pub(crate) use correct::FACE_REGION_MARGIN;
 pub use face::FaceStart;
-pub use network_search::{NETWORK_DETECTOR_MAX_ROLL, ROLLED_HEAD, ROLLED_HEAD_MAX_SHEAR};
-pub use proposals::{box_from_eyes, follows, FOLLOW_MAX_MOVE, FOLLOW_MAX_SCALE};
+pub(crate) use proposals::{box_from_eyes, follows};
 pub(crate) use report::FoundBox;
 pub use report::{CorrectOptions, FaceReport, ImageReport, Readout, Refusal, Region};
+use viola_jones_search::MAX_VIEW_PIXELS_RATIO;
 pub use viola_jones_search::{
-    Detection, DEFAULT_ROLL_HYPOTHESES, DEFAULT_SHEAR_HYPOTHESES, MAX_VIEW_PIXELS_RATIO,
-    THOROUGH_ROLL_HYPOTHESES, THOROUGH_SHEAR_HYPOTHESES, WEAK_BOX_MIN_WIDTH,
+    Detection, DEFAULT_ROLL_HYPOTHESES, DEFAULT_SHEAR_HYPOTHESES, THOROUGH_ROLL_HYPOTHESES,
+    THOROUGH_SHEAR_HYPOTHESES, WEAK_BOX_MIN_WIDTH,
 };
 
 use crate::config::Config;
@@ -248,7 +249,7 @@ impl Unshear {
 
     /// One face's row readings (an upright face in a picture read out by columns) converted to
     /// the vertical shear and the roll under it, as [`Self::read_by_columns`] does for each.
-    pub fn face_by_columns(&self, f: &mut FaceReport) {
+    pub(crate) fn face_by_columns(&self, f: &mut FaceReport) {
         use crate::estimate::vertical_from_row_reading;
         let roll = f.roll_degrees.to_radians();
         let column = |k: f64| vertical_from_row_reading(k, roll).map(|v| v.k);

@@ -68,7 +68,7 @@ pub(crate) fn measured_view_min_width(min_width: f64, smallest: f64, width: u32,
 /// accepted: at 45 degrees, two of the six fixture cases
 /// (`the_network_detector_finds_small_and_rolled_faces`) were read as rolled about 39 degrees and
 /// sheared by 0.16-0.22, with high confidence; at 30 degrees none was.
-pub const NETWORK_DETECTOR_MAX_ROLL: f64 = 35.0;
+pub(crate) const NETWORK_DETECTOR_MAX_ROLL: f64 = 35.0;
 
 /// The head roll (degrees) beyond which a face found by the network detector keeps its
 /// estimate only when that is a small shear ([`ROLLED_HEAD_MAX_SHEAR`]): a head rolled 40-50
@@ -77,10 +77,10 @@ pub const NETWORK_DETECTOR_MAX_ROLL: f64 = 35.0;
 /// turned by 30 and +-45 degrees and sheared by 0, +-0.40 (`eval shear --roll`), this refuses
 /// 56 of 70 accepted estimates more than 0.15 off; unturned (all nine shears), 16 of 8071
 /// accepted estimates, none of them more than 0.15 off (docs/accuracy.md).
-pub const ROLLED_HEAD: f64 = 25.0;
+pub(crate) const ROLLED_HEAD: f64 = 25.0;
 
 /// The largest shear (absolute) a face rolled beyond [`ROLLED_HEAD`] may be measured with.
-pub const ROLLED_HEAD_MAX_SHEAR: f64 = 0.1;
+pub(crate) const ROLLED_HEAD_MAX_SHEAR: f64 = 0.1;
 
 /// The confidence from which a face found hides the network detector's windows of about its
 /// size on it ([`window_is_new`]): the default's threshold. A face read with less can be a
@@ -546,7 +546,7 @@ impl Unshear {
         }
     }
 
-    /// Whether the network detector finds the faces ([`Detector::Network`] with the network
+    /// Whether the network detector finds the faces ([`Detector::Network`](crate::Detector::Network) with the network
     /// locator).
     pub fn uses_network_detector(&self) -> bool {
         self.network_detector().is_some()

@@ -128,21 +128,21 @@ pub(crate) fn proposal_detection_in(face_box: Rect) -> Detection {
 /// The box the landmark network is started from to follow `face` into the next video frame:
 /// the detector's upright box around its eyes (started upright, the network measures the roll
 /// itself; started at the last roll, its per-frame estimates were twice as noisy).
-pub fn box_from_eyes(face: &FaceReport) -> Rect {
+pub(crate) fn box_from_eyes(face: &FaceReport) -> Rect {
     let width = face.right_eye.distance(face.left_eye) / EYE_DISTANCE_PER_BOX_WIDTH;
     box_around_eyes(face.right_eye.midpoint(face.left_eye), width, width, 0.0)
 }
 
 /// How far (in its eye distances) a face may move from one video frame to the next and still
 /// be the face followed.
-pub const FOLLOW_MAX_MOVE: f64 = 1.0;
+pub(crate) const FOLLOW_MAX_MOVE: f64 = 1.0;
 /// How much a followed face's eye distance may change from one video frame to the next.
-pub const FOLLOW_MAX_SCALE: f64 = 1.5;
+pub(crate) const FOLLOW_MAX_SCALE: f64 = 1.5;
 
 /// Whether `next`, located from `last`'s eyes in the next frame, is still that face: its eyes'
 /// midpoint within [`FOLLOW_MAX_MOVE`] eye distances of the last one and its eye distance
 /// within [`FOLLOW_MAX_SCALE`] of it (the network can walk from a face that left to another).
-pub fn follows(last: &FaceReport, next: &FaceReport) -> bool {
+pub(crate) fn follows(last: &FaceReport, next: &FaceReport) -> bool {
     let d = last.right_eye.distance(last.left_eye);
     let moved = next
         .right_eye

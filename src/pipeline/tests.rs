@@ -632,7 +632,7 @@ fn combined_shear_is_the_weighted_median_of_the_consistent_majority() {
     assert_eq!((c.k, c.outvoted.len(), c.no_majority), (None, 0, true));
     // Two faces of about equal confidence far apart but within each other's uncertainty: not
     // the slightly heavier one's estimate, but a shear both can be right about.
-    let u = super::FACE_UNCERTAINTY;
+    let u = super::combine::FACE_UNCERTAINTY;
     let apart = [face(Some(0.1656), 0.977), face(Some(0.0099), 0.966)];
     let k = combined_shear(&apart).expect("k");
     assert!((k - (0.0099 + u)).abs() < 1e-12, "{k}");

@@ -74,7 +74,7 @@ pub(crate) const PARALLEL_VIEWS_MAX_PIXELS: u64 = 4_000_000;
 /// de-sheared by 0.3 is a 1-gigapixel view). Ordinary shapes stay below it: a 9:16 portrait
 /// de-sheared by 0.45 and turned by 45 degrees is 3.6 times its input, a 4:1 panorama turned by
 /// 45 degrees 3.1 times (docs/performance.md#extreme-shapes).
-pub const MAX_VIEW_PIXELS_RATIO: f64 = 4.0;
+pub(crate) const MAX_VIEW_PIXELS_RATIO: f64 = 4.0;
 
 /// The pixels of the view of a `width` x `height` image de-sheared by `k` onto a widened canvas
 /// and then turned by `roll` radians (the bounding box of the turned canvas).
@@ -139,6 +139,7 @@ impl View {
 
 /// A detected face.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct Detection {
     /// The face box in input-image pixels: where the detector's box lies in the de-sheared view,
     /// moved back so that its eye row is where the face's eyes are in the input.

@@ -71,7 +71,7 @@ pub struct ProcessOptions {
     /// rotation flag: 0, 90, -90 or 180; other angles are not turned). The frames are analysed
     /// turned upright, so faces are found; turned a quarter (a phone held upright), they were
     /// read out along the picture's columns, and `k` is the displayed picture's vertical shear
-    /// ([`Unshear::face_by_columns`]), undone on the stored frames along their rows.
+    /// (`Unshear::face_by_columns`), undone on the stored frames along their rows.
     pub rotation: i32,
     /// How the frames, as given, were read out: [`Readout::Rows`] for a clip's stored frames
     /// (with [`Self::rotation`]), [`Readout::Columns`] for frames already turned upright from

@@ -255,7 +255,7 @@ pub struct ShearSample {
     pub box_outside: Option<f64>,
     /// Where the located nose and mouth lie from the eyes' midpoint in the face's own frame
     /// (measured shear and roll undone), in eye distances: nose `x, y`, mouth `x, y`
-    /// ([`face_layout`]).
+    /// (`pipeline::confidence::face_layout`).
     pub layout: Option<[f64; 4]>,
     /// Milliseconds the pipeline took on the whole image (detection included).
     pub millis: f64,
