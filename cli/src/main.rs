@@ -143,6 +143,7 @@ fn no_shear_reason(report: &ImageReport) -> String {
                 Refusal::OutsideImage => "outside the image",
                 Refusal::NotFaceLike => "not face-like",
                 Refusal::UnreliablePose => "tipped and rolled head",
+                other => other.name(),
             };
             Some(format!(
                 "{why} (k_measured {:+.3}, confidence {:.2})",

@@ -147,30 +147,25 @@ mod tests {
             prop::array::uniform8(number()),
             any::<bool>(),
         )
-            .prop_map(|(v, w, refused)| FaceReport {
-                face_box: Rect::new(v[0], v[1], v[2], v[3]),
-                right_eye: Point { x: v[4], y: v[5] },
-                left_eye: Point { x: v[6], y: v[7] },
-                right_nostril: Point { x: v[8], y: v[9] },
-                left_nostril: Point { x: v[10], y: v[11] },
-                mouth: (!refused).then_some(Point { x: w[3], y: w[4] }),
-                k: (!refused).then_some(v[12]),
-                k_measured: v[12],
-                refused: refused.then_some(unshear::pipeline::Refusal::LowConfidence),
-                outvoted: !refused,
-                k_nose: Some(w[5]),
-                k_mouth: None,
-                nose_tip: None,
-                k_nose_tip: None,
-                nose_tip_psr: w[7],
-                roll_degrees: w[6],
-                confidence: v[13],
-                psr: [v[14], v[15], w[0], w[1], w[2]],
-                locator: unshear::pipeline::Locator::Filters,
-                k_network: None,
-                k_points: None,
-                spread: None,
-                face_score: None,
+            .prop_map(|(v, w, refused)| {
+                let mut f = FaceReport::default();
+                f.face_box = Rect::new(v[0], v[1], v[2], v[3]);
+                f.right_eye = Point { x: v[4], y: v[5] };
+                f.left_eye = Point { x: v[6], y: v[7] };
+                f.right_nostril = Point { x: v[8], y: v[9] };
+                f.left_nostril = Point { x: v[10], y: v[11] };
+                f.mouth = (!refused).then_some(Point { x: w[3], y: w[4] });
+                f.k = (!refused).then_some(v[12]);
+                f.k_measured = v[12];
+                f.refused = refused.then_some(unshear::pipeline::Refusal::LowConfidence);
+                f.outvoted = !refused;
+                f.k_nose = Some(w[5]);
+                f.nose_tip_psr = w[7];
+                f.roll_degrees = w[6];
+                f.confidence = v[13];
+                f.psr = [v[14], v[15], w[0], w[1], w[2]];
+                f.locator = unshear::pipeline::Locator::Filters;
+                f
             })
     }
 
@@ -199,7 +194,8 @@ mod tests {
             faces in prop::collection::vec(face(), 0..3),
             error in prop::option::of(any::<String>()),
         ) {
-            let report = ImageReport { k, faces: faces.clone(), faces_disagree: false, warnings: vec![file.clone()], width: 10, height: 10, readout: unshear::Readout::Rows };
+            let mut report = ImageReport::empty(10, 10);
+            (report.k, report.faces, report.warnings) = (k, faces.clone(), vec![file.clone()]);
             let line = match &error {
                 None => JsonLine::ok(&file, &report),
                 Some(e) => JsonLine::error(&file, e.clone()),

@@ -25,7 +25,7 @@ use ::image::DynamicImage;
 use unshear::imageio::{self, WriteOptions, DEFAULT_MAX_PIXELS};
 use unshear::pipeline::{CorrectOptions, Region};
 use unshear::warp::{Canvas, Interpolation};
-use unshear::{Error, ImageReport, Readout, Shear};
+use unshear::{Error, ImageReport, Shear};
 
 use crate::config::{build, PyConfig, Use};
 use crate::image::{from_array, to_array, Input, Layout};
@@ -248,15 +248,7 @@ impl PyUnshear {
             let report = match given {
                 Some(r) => r,
                 None if needs_faces => self.inner.estimate(&image),
-                None => ImageReport {
-                    k: None,
-                    faces: Vec::new(),
-                    faces_disagree: false,
-                    warnings: Vec::new(),
-                    width: image.width(),
-                    height: image.height(),
-                    readout: Readout::Rows,
-                },
+                None => ImageReport::empty(image.width(), image.height()),
             };
             if !options.changes(&report) {
                 return Err(NoFaceError::new_err(no_change_reason(&options)));

@@ -1,6 +1,6 @@
 //! Faces found more than once reduced to one, and the image's shear from its faces.
 
-use super::report::{FaceReport, Refusal};
+use super::report::{FaceReport, FoundBox, Refusal};
 use crate::geometry::Rect;
 use crate::stats::weighted_median;
 
@@ -46,25 +46,26 @@ fn same_face(a: &FaceReport, b: &FaceReport) -> bool {
 /// often from a view that takes in the whole head, whose walk of crops may have stopped on
 /// something else (eyes of two faces, say) before reaching it; two people's faces cannot both
 /// fit in one face box.
-pub(crate) fn most_confident_of_overlapping(
-    mut all: Vec<(Rect, Option<FaceReport>)>,
-) -> Vec<(Rect, Option<FaceReport>)> {
+pub(crate) fn most_confident_of_overlapping(mut all: Vec<FoundBox>) -> Vec<FoundBox> {
     let confidence = |r: &Option<FaceReport>| r.as_ref().map_or(-1.0, |r| r.confidence);
     let face_score = |r: &Option<FaceReport>| r.and_then(|r| r.face_score).unwrap_or(-1.0);
-    let holds_its_eyes =
-        |(b, r): &(Rect, Option<FaceReport>)| r.as_ref().is_some_and(|r| holds_eyes(b, r));
+    let holds_its_eyes = |f: &FoundBox| {
+        f.report
+            .as_ref()
+            .is_some_and(|r| holds_eyes(&f.face_box, r))
+    };
     all.sort_by(|a, b| {
         holds_its_eyes(b)
             .cmp(&holds_its_eyes(a))
-            .then(confidence(&b.1).total_cmp(&confidence(&a.1)))
-            .then(face_score(&b.1).total_cmp(&face_score(&a.1)))
+            .then(confidence(&b.report).total_cmp(&confidence(&a.report)))
+            .then(face_score(&b.report).total_cmp(&face_score(&a.report)))
     });
-    let mut kept: Vec<(Rect, Option<FaceReport>)> = Vec::new();
+    let mut kept: Vec<FoundBox> = Vec::new();
     for f in all {
-        let duplicate = |k: &(Rect, Option<FaceReport>)| {
-            k.0.iou(&f.0) >= 0.3
-                || matches!((&k.1, &f.1), (Some(a), Some(b)) if same_face(a, b))
-                || matches!(&k.1, Some(a) if holds_eyes(&f.0, a))
+        let duplicate = |k: &FoundBox| {
+            k.face_box.iou(&f.face_box) >= 0.3
+                || matches!((&k.report, &f.report), (Some(a), Some(b)) if same_face(a, b))
+                || matches!(&k.report, Some(a) if holds_eyes(&f.face_box, a))
         };
         if !kept.iter().any(duplicate) {
             kept.push(f);
@@ -81,23 +82,29 @@ pub(crate) fn most_confident_of_overlapping(
 /// sheared: a box around head and shoulders whose located "eyes" were a shoulder and the real
 /// face, accepted with high confidence, while the real face inside it was refused for its pose.
 /// A face refused for any other reason is a weak claim and refuses nothing.
-fn refuse_nested(kept: &mut [(Rect, Option<FaceReport>)]) {
+fn refuse_nested(kept: &mut [FoundBox]) {
     let credible = |r: &FaceReport| matches!(r.refused, None | Some(Refusal::UnreliablePose));
     let nested: Vec<usize> = (0..kept.len())
         .filter(|&i| {
-            let (a_box, Some(a)) = &kept[i] else {
+            let FoundBox {
+                face_box: a_box,
+                report: Some(a),
+            } = &kept[i]
+            else {
                 return false;
             };
             a.k.is_some()
-                && kept.iter().enumerate().any(|(j, (b_box, b))| {
-                    b.as_ref().is_some_and(|b| {
-                        i != j && credible(b) && (holds_eyes(a_box, b) || holds_eyes(b_box, a))
+                && kept.iter().enumerate().any(|(j, f)| {
+                    f.report.as_ref().is_some_and(|b| {
+                        i != j
+                            && credible(b)
+                            && (holds_eyes(a_box, b) || holds_eyes(&f.face_box, a))
                     })
                 })
         })
         .collect();
     for i in nested {
-        if let Some(r) = kept[i].1.as_mut() {
+        if let Some(r) = kept[i].report.as_mut() {
             r.k = None;
             r.refused = Some(Refusal::NotFaceLike);
         }
@@ -105,8 +112,8 @@ fn refuse_nested(kept: &mut [(Rect, Option<FaceReport>)]) {
 }
 
 /// [`combined_shear`] of the faces in `found` that gave an estimate.
-pub(crate) fn measured_shear(found: &[(Rect, Option<FaceReport>)]) -> Option<f64> {
-    let reports: Vec<FaceReport> = found.iter().filter_map(|(_, r)| *r).collect();
+pub(crate) fn measured_shear(found: &[FoundBox]) -> Option<f64> {
+    let reports: Vec<FaceReport> = found.iter().filter_map(|f| f.report).collect();
     combined_shear(&reports)
 }
 
@@ -114,11 +121,11 @@ pub(crate) fn measured_shear(found: &[(Rect, Option<FaceReport>)]) -> Option<f64
 /// expected in. The confidence is a model of the chance that the estimate is within 0.10 of the
 /// truth, so two accepted faces whose estimates are more than twice this apart cannot both be
 /// right.
-pub const FACE_UNCERTAINTY: f64 = 0.10;
+pub(crate) const FACE_UNCERTAINTY: f64 = 0.10;
 
 /// The image's shear from its faces, and which faces disagree with it.
 #[derive(Debug, Clone, PartialEq, Default)]
-pub struct Consensus {
+pub(crate) struct Consensus {
     /// The confidence-weighted median of the consistent majority, `None` when no face has an
     /// accepted estimate or no consistent group outweighs the rest.
     pub k: Option<f64>,
@@ -135,7 +142,7 @@ pub struct Consensus {
 /// within [`FACE_UNCERTAINTY`] of every face of the group, and the faces outside it are
 /// outvoted; otherwise the faces disagree and the image gets no shear (a wrong correction is
 /// worse than none). One face, or faces that all agree, is its own majority.
-pub fn consensus(faces: &[FaceReport]) -> Consensus {
+pub(crate) fn consensus(faces: &[FaceReport]) -> Consensus {
     let accepted: Vec<(usize, f64, f64)> = faces
         .iter()
         .enumerate()
@@ -193,12 +200,12 @@ pub fn consensus(faces: &[FaceReport]) -> Consensus {
 /// median of the consistent majority, robust to a minority of faces whose features were
 /// mislocated. Faces with refused estimates do not count; `None` when no face has an accepted
 /// estimate or the faces disagree with no majority.
-pub fn combined_shear(faces: &[FaceReport]) -> Option<f64> {
+pub(crate) fn combined_shear(faces: &[FaceReport]) -> Option<f64> {
     consensus(faces).k
 }
 
 /// [`consensus`] of `faces`, with the faces it outvotes marked so (`outvoted`).
-pub fn mark_consensus(faces: &mut [FaceReport]) -> Consensus {
+pub(crate) fn mark_consensus(faces: &mut [FaceReport]) -> Consensus {
     let consensus = consensus(faces);
     for &i in &consensus.outvoted {
         faces[i].outvoted = true;

@@ -11,13 +11,13 @@ use crate::warp;
 /// How much a face box is enlarged (each side, as a fraction of its size) to make the region that
 /// a face-region correction changes: the margin takes in hair and jaw, and the warp's feathered
 /// edge lies outside the face.
-pub const FACE_REGION_MARGIN: f64 = 0.3;
+pub(crate) const FACE_REGION_MARGIN: f64 = 0.3;
 
 impl Unshear {
     /// Undoes the shear found in `report` (or `options.k`) on `img` (equation 6).
     ///
     /// Whole image: rows shifted by `-k (y - H/2)`. Faces: each face region (its box enlarged by
-    /// [`FACE_REGION_MARGIN`]) de-sheared about its own centre with its own `k`, feathered into the
+    /// 30% of its size each way) de-sheared about its own centre with its own `k`, feathered into the
     /// untouched surroundings. A report read out by columns ([`Readout::Columns`]) is undone
     /// along the columns: the same warp on the transposed image, columns shifted by
     /// `-k (x - W/2)`. Fails with [`Error::InvalidArgument`] when there is no shear to apply

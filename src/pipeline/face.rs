@@ -9,7 +9,7 @@ use super::confidence::{
     confidence, network_confidence, plausibility, ConfidenceModel, Doubt, LocatedPoints,
 };
 use super::report::{FaceReport, Refusal};
-use super::search::Detection;
+use super::viola_jones_search::Detection;
 use super::Unshear;
 use crate::config::Locator;
 use crate::detect::boxes::{eyes_of_box, face_box_from_eyes, EYE_DISTANCE_PER_BOX_WIDTH};
@@ -60,6 +60,30 @@ thread_local! {
     static CORRELATOR: RefCell<Option<Correlator>> = const { RefCell::new(None) };
     /// One landmark-network workspace per thread.
     static NET_WORKSPACE: RefCell<network::Workspace> = RefCell::new(network::Workspace::default());
+}
+
+/// What the landmark network read in one box ([`Unshear::read_box`]).
+// As large as the `Result<FaceReport, _>` it names: a reading is moved a few times, not stored.
+#[allow(clippy::large_enum_variant)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum BoxReading {
+    /// A face, with its estimate (which may be refused).
+    Face(FaceReport),
+    /// No face: nothing read, or a face score well short of a face's.
+    NoFace,
+    /// No face, but a face score short of a face's by little ([`RETRY_MIN_FACE_SCORE`]): worth
+    /// reading again from turned starts.
+    Doubtful,
+}
+
+impl BoxReading {
+    /// The face read, if any.
+    pub(crate) fn face(self) -> Option<FaceReport> {
+        match self {
+            Self::Face(r) => Some(r),
+            Self::NoFace | Self::Doubtful => None,
+        }
+    }
 }
 
 /// Where to start locating one face's features (see [`Unshear::estimate_face`]).
@@ -125,7 +149,7 @@ impl Unshear {
             let net = &self.network;
             return self
                 .network_reading(net, gray, face_box, start_k, roll, budget, false)
-                .ok();
+                .face();
         }
         let mut best = self.locate_and_estimate(gray, face_box, start_k, roll)?;
         let (mut last, mut searched_roll) = (best, roll);
@@ -264,20 +288,22 @@ impl Unshear {
         })
     }
 
-    /// [`Self::estimate_face`] by the landmark network, `Err(true)` when the box gives no face
-    /// but its reading is doubtful (a face score from [`RETRY_MIN_FACE_SCORE`]). With `turned`,
-    /// the box is instead read from starts turned [`RETRY_ROLL_DEGREES`] each way and the
-    /// better reading kept; a face found so is reported with its estimate refused and no
-    /// confidence. `Err(false)` with the filters, which have no face score.
+    /// [`Self::estimate_face`] by the landmark network, [`BoxReading::Doubtful`] when the box
+    /// gives no face but a face score from [`RETRY_MIN_FACE_SCORE`]. With `turned`, the box is
+    /// instead read from starts turned [`RETRY_ROLL_DEGREES`] each way and the better reading
+    /// kept; a face found so is reported with its estimate refused and no confidence. Never
+    /// doubtful with the filters, which have no face score.
     pub(crate) fn read_box(
         &self,
         gray: &GrayImage,
         face_box: Rect,
         start: FaceStart,
         turned: bool,
-    ) -> Result<FaceReport, bool> {
+    ) -> BoxReading {
         if self.locator() != Locator::Network {
-            return self.estimate_face(gray, face_box, start).ok_or(false);
+            return self
+                .estimate_face(gray, face_box, start)
+                .map_or(BoxReading::NoFace, BoxReading::Face);
         }
         let budget = start.budget.unwrap_or(self.config.network_budget);
         let net = &self.network;
@@ -301,9 +327,9 @@ impl Unshear {
         roll: f64,
         budget: Budget,
         turned: bool,
-    ) -> Result<FaceReport, bool> {
+    ) -> BoxReading {
         if !can_search(gray, face_box) || !start_k.is_finite() || !roll.is_finite() {
-            return Err(false);
+            return BoxReading::NoFace;
         }
         // Where the box predicts the eyes' midpoint, turned with the box about its centre.
         let eyes = eyes_of_box(face_box, roll);
@@ -325,17 +351,23 @@ impl Unshear {
         } else {
             locate(roll)
         };
-        let found = found.ok_or(false)?;
+        let Some(found) = found else {
+            return BoxReading::NoFace;
+        };
         if found.face < MIN_FACE_SCORE {
             // Not a face: a false detection, which must not report a shear.
-            return Err(!turned && found.face >= RETRY_MIN_FACE_SCORE);
+            return if !turned && found.face >= RETRY_MIN_FACE_SCORE {
+                BoxReading::Doubtful
+            } else {
+                BoxReading::NoFace
+            };
         }
         if found.roll.abs() > crate::estimate::MAX_ROLL {
             // A face rolled beyond what the search looks for (turned views up to 45 degrees and
             // the cascade's tolerance about them) and where shear and roll stop being separable
             // (see MAX_ROLL): on the development photos these were patterns the network read
             // sideways or upside down, and copies of faces found upright in another box.
-            return Err(false);
+            return BoxReading::NoFace;
         }
         let nostrils = self.nostrils_below(gray, &found);
         let eye_line = Point::new(
@@ -369,7 +401,7 @@ impl Unshear {
                 (k, refused) = (None, Some(Refusal::UnreliablePose));
             }
         }
-        Ok(FaceReport {
+        BoxReading::Face(FaceReport {
             face_box,
             right_eye: found.right_eye,
             left_eye: found.left_eye,

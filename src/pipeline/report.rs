@@ -11,6 +11,7 @@ use crate::warp::{Canvas, Interpolation};
 /// Why a face's estimate was refused (its `k` is `None`, [`FaceReport::k_measured`] kept).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
+#[non_exhaustive]
 pub enum Refusal {
     /// The learned confidence is below the threshold
     /// ([`Config::min_confidence`](crate::Config::min_confidence)).
@@ -19,18 +20,16 @@ pub enum Refusal {
     /// camera produces it in a usable picture.
     ImplausibleShear,
     /// The face box or its located points lie largely outside the image: what is measured there
-    /// is not seen (see [`pipeline::confidence::plausibility`](crate::pipeline::confidence::plausibility)).
+    /// is not seen.
     OutsideImage,
     /// The located points are not laid out as a face's are (eye distance against the box, the
     /// nose and mouth below the eyes), so whatever they found is not a face; or the face's box
     /// holds another face's eyes, or the other way round, and one of the two is not a face.
     NotFaceLike,
-    /// A head tipped far back or forward, or foreshortened and rolled (see
-    /// [`TRUSTED_NOSE_DROP`](crate::pipeline::confidence::TRUSTED_NOSE_DROP)), or, found by the
-    /// network detector, rolled beyond
-    /// [`NETWORK_DETECTOR_MAX_ROLL`](crate::pipeline::NETWORK_DETECTOR_MAX_ROLL) or rolled beyond
-    /// [`ROLLED_HEAD`](crate::pipeline::ROLLED_HEAD) and measured strongly sheared, or read as a
-    /// face only from a start turned away from the detector's: its shear reading is unreliable.
+    /// A head tipped far back or forward, or foreshortened and rolled, or, found by the network
+    /// detector, rolled beyond 35 degrees or beyond 25 and measured strongly sheared, or read
+    /// as a face only from a start turned away from the detector's: its shear reading is
+    /// unreliable.
     UnreliablePose,
 }
 
@@ -48,7 +47,8 @@ impl Refusal {
 }
 
 /// What was found for one face.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[non_exhaustive]
 pub struct FaceReport {
     /// The face box from the detector, input-image pixels.
     pub face_box: Rect,
@@ -71,7 +71,7 @@ pub struct FaceReport {
     pub refused: Option<Refusal>,
     /// Whether the image's shear was taken from other faces that agree with each other and
     /// outweigh this one's accepted estimate, which disagrees with them beyond both
-    /// estimates' uncertainty (see [`combined_shear`](crate::pipeline::combined_shear)). Its
+    /// estimates' uncertainty. Its
     /// own `k` is kept: `--region face` corrects it by it.
     pub outvoted: bool,
     /// The nose axis's own estimate (shear-and-roll model), if usable.
@@ -88,7 +88,8 @@ pub struct FaceReport {
     /// The head's roll under that shear, degrees (positive: the subject's left eye, on the image
     /// right, lower); 0 with [`ShearModel::Equation5`](crate::estimate::ShearModel::Equation5).
     pub roll_degrees: f64,
-    /// How far the estimate can be trusted, from 0 to 1 (see [`pipeline::confidence`](crate::pipeline::confidence)).
+    /// How far the estimate can be trusted, from 0 to 1: a learned model of the chance that the
+    /// estimate is within 0.10 of the truth, times the ruled checks' factor.
     pub confidence: f64,
     /// Peak-to-sidelobe ratios of right eye, left eye, right nostril, left nostril and mouth
     /// (0 without a mouth filter; with the landmark network, which has no correlation peaks for
@@ -109,6 +110,26 @@ pub struct FaceReport {
     pub face_score: Option<f64>,
 }
 
+/// A face box the search found and the face read in it, if the box gave one (the evaluation
+/// tells a face not found from one found without an estimate).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct FoundBox {
+    /// The box, input-image pixels.
+    pub(crate) face_box: Rect,
+    /// The face read in it, if any.
+    pub(crate) report: Option<FaceReport>,
+}
+
+impl FoundBox {
+    /// The box `face_box` that gave the face `report`.
+    pub(crate) fn face(face_box: Rect, report: FaceReport) -> Self {
+        Self {
+            face_box,
+            report: Some(report),
+        }
+    }
+}
+
 /// Which way the camera read the picture out, and so which way `k` shears it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -124,6 +145,7 @@ pub enum Readout {
 
 /// What was found in one image.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[non_exhaustive]
 pub struct ImageReport {
     /// The image's shear: the confidence-weighted median of the consistent majority of the
     /// faces' accepted estimates, `None` without one.
@@ -131,7 +153,7 @@ pub struct ImageReport {
     /// Every face with an estimate.
     pub faces: Vec<FaceReport>,
     /// Whether faces had accepted estimates that disagree beyond their uncertainty with no
-    /// consistent majority, so the image has no shear ([`consensus`](crate::pipeline::consensus)).
+    /// consistent majority, so the image has no shear.
     pub faces_disagree: bool,
     /// What the caller should know about this result (a search cut short by the image's shape,
     /// say), one sentence each.
@@ -146,6 +168,20 @@ pub struct ImageReport {
 }
 
 impl ImageReport {
+    /// The report of a `width` x `height` image with nothing found in it (nothing looked
+    /// for, say, when a correction's shear is given).
+    pub fn empty(width: u32, height: u32) -> Self {
+        Self {
+            k: None,
+            faces: Vec::new(),
+            faces_disagree: false,
+            warnings: Vec::new(),
+            width,
+            height,
+            readout: Readout::Rows,
+        }
+    }
+
     /// The marks [`crate::annotate::draw_annotations`] draws for these faces (the face axis of
     /// a refused estimate is drawn too, with the shear that was measured: the picture shows what
     /// was found; not for a picture read out by columns, whose axis a row shear does not draw).

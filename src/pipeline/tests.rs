@@ -1,15 +1,27 @@
 use super::combine::{combined_shear, consensus, holds_eyes, most_confident_of_overlapping};
-use super::proposals::{
-    network_windows, network_windows_desheared, proposal_detection, proposal_eyes, proposal_is_new,
-    proposal_shows, settle_unsure_faces, window_is_new, HIDING_MIN_CONFIDENCE,
+use super::face::BoxReading;
+use super::network_search::{
+    measured_view_min_width, network_windows, network_windows_desheared, settle_unsure_faces,
+    window_is_new, DoubtfulWindow, HIDING_MIN_CONFIDENCE,
 };
-use super::search::{
+use super::proposals::{proposal_detection, proposal_eyes, proposal_is_new, proposal_shows};
+use super::viola_jones_search::{
     overlapping_groups, strongest_of_overlapping, tries_of_group, View, THOROUGH_BOX_TRIES,
     THOROUGH_HALF_STEP_LADDER, TURNED_DESHEARED_MIN_ROLL, TURNED_DESHEARED_SHEARS,
 };
 use super::*;
+use crate::config::MIN_NETWORK_FACE;
 use crate::detect::boxes::{box_around_eyes, eyes_in_box, EYE_DISTANCE_PER_BOX_WIDTH};
+use crate::geometry::{Point, Rect};
 use crate::locate::filters::{NormalizedFace, FACE_WIDTH};
+
+/// A box that gave no face.
+fn nothing_at(face_box: Rect) -> FoundBox {
+    FoundBox {
+        face_box,
+        report: None,
+    }
+}
 
 /// A corrector with the built-in models.
 fn built(config: Config) -> Unshear {
@@ -176,7 +188,12 @@ fn strong_rolls_are_searched_again_de_sheared_by_the_measured_shear() {
         .filter(|v| v.k == 0.0 && v.roll.to_degrees().abs() >= TURNED_DESHEARED_MIN_ROLL)
         .collect();
     assert_eq!(strong.len(), 4, "+-25 and +-45 degrees: {strong:?}");
-    let found = |k: Option<f64>| vec![(Rect::new(0.0, 0.0, 10.0, 10.0), Some(face(k, 0.8)))];
+    let found = |k: Option<f64>| {
+        vec![FoundBox::face(
+            Rect::new(0.0, 0.0, 10.0, 10.0),
+            face(k, 0.8),
+        )]
+    };
     // An accepted face measured 0.37: the strong rolls at that shear, each on its ladder.
     let views = unshear.turned_desheared_views(&found(Some(0.37)));
     assert_eq!(views.len(), strong.len());
@@ -287,17 +304,17 @@ fn a_group_of_overlapping_boxes_is_tried_strongest_first_one_box_per_view() {
 fn overlapping_faces_keep_the_most_confident_estimate() {
     let at = |x: f64| Rect::new(x, 0.0, 100.0, 100.0);
     let kept = most_confident_of_overlapping(vec![
-        (at(0.0), None),
-        (at(10.0), Some(face(Some(0.1), 0.4))),
-        (at(5.0), Some(face(None, 0.9))),
-        (at(400.0), None),
+        nothing_at(at(0.0)),
+        FoundBox::face(at(10.0), face(Some(0.1), 0.4)),
+        FoundBox::face(at(5.0), face(None, 0.9)),
+        nothing_at(at(400.0)),
     ]);
     assert_eq!(kept.len(), 2);
     assert_eq!(
-        kept[0].0.x, 5.0,
+        kept[0].face_box.x, 5.0,
         "the most confident of the three overlapping"
     );
-    assert!(kept[1].1.is_none() && kept[1].0.x == 400.0);
+    assert!(kept[1].report.is_none() && kept[1].face_box.x == 400.0);
 }
 
 #[test]
@@ -316,9 +333,10 @@ fn equally_confident_faces_keep_the_higher_face_score_whatever_came_first() {
     let (part, whole) = (refused(330.0, 38.0, 0.987), refused(300.0, 97.0, 0.999));
     assert!(holds_eyes(&whole.face_box, &part), "the case: a duplicate");
     for order in [[part, whole], [whole, part]] {
-        let kept = most_confident_of_overlapping(order.map(|r| (r.face_box, Some(r))).to_vec());
+        let kept =
+            most_confident_of_overlapping(order.map(|r| FoundBox::face(r.face_box, r)).to_vec());
         assert_eq!(
-            kept[0].1.unwrap().face_score,
+            kept[0].report.unwrap().face_score,
             Some(0.999),
             "the whole face first"
         );
@@ -346,11 +364,11 @@ fn a_face_whose_box_holds_another_credible_face_is_refused() {
     };
     let run = |inner: FaceReport| {
         let kept = most_confident_of_overlapping(vec![
-            (outer.face_box, Some(outer)),
-            (inner.face_box, Some(inner)),
+            FoundBox::face(outer.face_box, outer),
+            FoundBox::face(inner.face_box, inner),
         ]);
         assert_eq!(kept.len(), 2, "two different faces, neither a duplicate");
-        (kept[0].1.unwrap(), kept[1].1.unwrap())
+        (kept[0].report.unwrap(), kept[1].report.unwrap())
     };
     let (o, i) = run(inner(None, Some(Refusal::UnreliablePose)));
     assert_eq!((o.k, o.refused), (None, Some(Refusal::NotFaceLike)));
@@ -377,10 +395,10 @@ fn a_face_whose_box_holds_another_credible_face_is_refused() {
         ..outer
     };
     let kept = most_confident_of_overlapping(vec![
-        (outer.face_box, Some(outer)),
-        (beside.face_box, Some(beside)),
+        FoundBox::face(outer.face_box, outer),
+        FoundBox::face(beside.face_box, beside),
     ]);
-    assert!(kept.iter().all(|(_, r)| r.unwrap().k == Some(0.25)));
+    assert!(kept.iter().all(|f| f.report.unwrap().k == Some(0.25)));
 }
 
 #[test]
@@ -407,14 +425,14 @@ fn a_proposal_on_a_face_found_or_inside_it_is_not_searched() {
     // A face found with eyes 60 px apart at (300, 200), in its detector's box.
     let width = 60.0 / EYE_DISTANCE_PER_BOX_WIDTH;
     let found_box = box_around_eyes(Point::new(300.0, 200.0), width, width, 0.0);
-    let found = vec![(
+    let found = vec![FoundBox::face(
         found_box,
-        Some(FaceReport {
+        FaceReport {
             face_box: found_box,
             right_eye: Point::new(270.0, 200.0),
             left_eye: Point::new(330.0, 200.0),
             ..face(Some(0.1), 0.9)
-        }),
+        },
     )];
     // The same face, a little off: its box holds both eyes.
     assert!(!proposal_is_new(
@@ -432,18 +450,18 @@ fn a_proposal_on_a_face_found_or_inside_it_is_not_searched() {
         &found
     ));
     assert!(proposal_is_new(&nose, &[]));
-    assert!(proposal_is_new(&nose, &[(found_box, None)]));
+    assert!(proposal_is_new(&nose, &[nothing_at(found_box)]));
     // A window about a small "face" found on a large face's nose, holding neither of its
     // eyes: the large face is searched.
     let small_box = box_around_eyes(Point::new(300.0, 240.0), 50.0, 50.0, 0.0);
-    let small = vec![(
+    let small = vec![FoundBox::face(
         small_box,
-        Some(FaceReport {
+        FaceReport {
             face_box: small_box,
             right_eye: Point::new(290.0, 240.0),
             left_eye: Point::new(310.0, 240.0),
             ..face(Some(0.1), 0.9)
-        }),
+        },
     )];
     let large = proposal_detection(Point::new(300.0, 225.0), 60.0);
     assert!(small_box.contains(proposal_eyes(&large).0));
@@ -458,7 +476,7 @@ fn a_proposal_on_a_face_found_or_inside_it_is_not_searched() {
 
 /// A face found from a window with eyes 60 px apart at `(x, 200)`, as the network detector
 /// keeps it (its window's box, the face), read with `confidence`.
-fn found_at(x: f64, confidence: f64) -> (Rect, Option<FaceReport>) {
+fn found_at(x: f64, confidence: f64) -> FoundBox {
     let window = proposal_detection(Point::new(x, 200.0), 60.0).face_box;
     let report = FaceReport {
         face_box: window,
@@ -466,7 +484,7 @@ fn found_at(x: f64, confidence: f64) -> (Rect, Option<FaceReport>) {
         left_eye: Point::new(x + 30.0, 200.0),
         ..face(Some(0.1), confidence)
     };
-    (window, Some(report))
+    FoundBox::face(window, report)
 }
 
 /// A face read with less than the default's confidence hides no window of about its size (it
@@ -495,11 +513,11 @@ fn an_unsure_face_hides_only_the_windows_on_its_parts() {
 #[test]
 fn a_sure_face_takes_an_unsure_ones_place_and_an_unsure_one_is_dropped() {
     let (low, high) = (0.5 * HIDING_MIN_CONFIDENCE, HIDING_MIN_CONFIDENCE);
-    let settled = |mut found: Vec<(Rect, Option<FaceReport>)>, first_new: usize| {
+    let settled = |mut found: Vec<FoundBox>, first_new: usize| {
         settle_unsure_faces(&mut found, first_new);
         found
             .iter()
-            .map(|(_, r)| r.expect("a face").right_eye.x + 30.0)
+            .map(|f| f.report.expect("a face").right_eye.x + 30.0)
             .collect::<Vec<_>>()
     };
     // A wrong reading first (unsure), then the face beside it read right (sure), then a face
@@ -540,26 +558,26 @@ fn one_face_found_in_two_boxes_is_reported_once() {
     let around_the_head = Rect::new(0.0, -60.0, 315.0, 315.0);
     assert!(tight.iou(&around_the_head) < 0.3);
     let kept = most_confident_of_overlapping(vec![
-        (around_the_head, Some(located(104.0, 0.6))),
-        (tight, Some(located(100.0, 0.9))),
+        FoundBox::face(around_the_head, located(104.0, 0.6)),
+        FoundBox::face(tight, located(100.0, 0.9)),
         // Another face beside it, one eye distance and a half away: kept.
-        (
-            Rect::new(150.0, 20.0, 105.0, 105.0),
-            Some(located(160.0, 0.5)),
-        ),
+        FoundBox::face(Rect::new(150.0, 20.0, 105.0, 105.0), located(160.0, 0.5)),
     ]);
     assert_eq!(kept.len(), 2, "{kept:?}");
-    assert_eq!(kept[0].0, tight, "the more confident of the two copies");
-    assert_eq!(kept[1].0.x, 150.0);
+    assert_eq!(
+        kept[0].face_box, tight,
+        "the more confident of the two copies"
+    );
+    assert_eq!(kept[1].face_box.x, 150.0);
     // A more confident copy from a box beside the face, which does not hold the eyes it
     // located, gives way to the box that does.
     let beside = Rect::new(135.0, 20.0, 105.0, 105.0);
     let kept = most_confident_of_overlapping(vec![
-        (beside, Some(located(102.0, 0.99))),
-        (tight, Some(located(100.0, 0.9))),
+        FoundBox::face(beside, located(102.0, 0.99)),
+        FoundBox::face(tight, located(100.0, 0.9)),
     ]);
     assert_eq!(kept.len(), 1, "{kept:?}");
-    assert_eq!(kept[0].0, tight);
+    assert_eq!(kept[0].face_box, tight);
     // A large box around the head whose walk stopped on other points (its located eyes far
     // from the face's, not the same face by `same_face`) but which holds the kept face's
     // eyes: the same face seen again, not reported.
@@ -569,13 +587,14 @@ fn one_face_found_in_two_boxes_is_reported_once() {
         ..face(Some(-0.5), 0.01)
     };
     let kept = most_confident_of_overlapping(vec![
-        (around_the_head, Some(stopped_elsewhere)),
-        (tight, Some(located(100.0, 0.9))),
+        FoundBox::face(around_the_head, stopped_elsewhere),
+        FoundBox::face(tight, located(100.0, 0.9)),
     ]);
     assert_eq!(kept.len(), 1, "{kept:?}");
-    assert_eq!(kept[0].0, tight);
+    assert_eq!(kept[0].face_box, tight);
     // Without the tight face, it is reported (its own box holds its eyes).
-    let alone = most_confident_of_overlapping(vec![(around_the_head, Some(stopped_elsewhere))]);
+    let alone =
+        most_confident_of_overlapping(vec![FoundBox::face(around_the_head, stopped_elsewhere)]);
     assert_eq!(alone.len(), 1);
 }
 
@@ -611,7 +630,7 @@ fn combined_shear_is_the_weighted_median_of_the_consistent_majority() {
     assert_eq!((c.k, c.outvoted.len(), c.no_majority), (None, 0, true));
     // Two faces of about equal confidence far apart but within each other's uncertainty: not
     // the slightly heavier one's estimate, but a shear both can be right about.
-    let u = super::FACE_UNCERTAINTY;
+    let u = super::combine::FACE_UNCERTAINTY;
     let apart = [face(Some(0.1656), 0.977), face(Some(0.0099), 0.966)];
     let k = combined_shear(&apart).expect("k");
     assert!((k - (0.0099 + u)).abs() < 1e-12, "{k}");
@@ -698,8 +717,7 @@ fn a_window_off_its_face_gets_a_second_look_from_where_the_network_landed() {
     let mut found = Vec::new();
     u.judge_windows(&gray, vec![(window, 5.0)], None, budget, &mut found);
     assert_eq!(found.len(), 1, "{found:?}");
-    let (b, r) = found[0];
-    let r = r.expect("an estimate");
+    let (b, r) = (found[0].face_box, found[0].report.expect("an estimate"));
     // The face found again, in the second look's box around the eyes first located.
     assert!(r.right_eye.midpoint(r.left_eye).distance(eyes) < 0.1 * distance);
     let expected_width = distance / EYE_DISTANCE_PER_BOX_WIDTH;
@@ -722,10 +740,12 @@ fn a_box_read_from_turned_starts_gives_the_face_refused() {
     };
     let upright = u
         .read_box(&gray, face.face_box, start, false)
+        .face()
         .expect("the face read as it is");
     assert!(upright.k.is_some(), "{upright:?}");
     let turned = u
         .read_box(&gray, face.face_box, start, true)
+        .face()
         .expect("the face read from turned starts");
     assert_eq!(turned.k, None, "{turned:?}");
     assert_eq!(turned.refused, Some(Refusal::UnreliablePose));
@@ -735,7 +755,7 @@ fn a_box_read_from_turned_starts_gives_the_face_refused() {
     let flat = GrayImage::from_pixel(gray.width(), gray.height(), image::Luma([128]));
     for turned in [false, true] {
         let read = u.read_box(&flat, face.face_box, start, turned);
-        assert_eq!(read.err(), Some(false), "turned: {turned}");
+        assert_eq!(read, BoxReading::NoFace, "turned: {turned}");
     }
 }
 
@@ -757,7 +777,7 @@ fn doubtful_windows_add_only_faces_not_found() {
     let mut found = Vec::new();
     u.judge_doubtful_windows(&gray, &doubtful, budget, &mut found);
     assert_eq!(found.len(), 1, "{found:?}");
-    let r = found[0].1.expect("a face");
+    let r = found[0].report.expect("a face");
     assert_eq!((r.k, r.confidence), (None, 0.0), "{r:?}");
     let mut found = Vec::new();
     let left = u.judge_windows(&gray, vec![(window, 5.0)], None, budget, &mut found);
@@ -765,11 +785,11 @@ fn doubtful_windows_add_only_faces_not_found() {
     assert_eq!(found.len(), 1);
     u.judge_doubtful_windows(&gray, &doubtful, budget, &mut found);
     assert_eq!(found.len(), 1, "no second face over the first: {found:?}");
-    assert!(found[0].1.is_some_and(|r| r.k.is_some()));
+    assert!(found[0].report.is_some_and(|r| r.k.is_some()));
 }
 
 /// Looking at a frame's windows in parallel waves gives what looking at one after the other
-/// gives: a window on the face a stronger window found is skipped (its look `None`), the
+/// gives: a window on the face a stronger window found is skipped (no face), the
 /// others are looked at, in the windows' order.
 #[test]
 fn windows_looked_at_in_waves_are_judged_as_one_at_a_time() {
@@ -791,21 +811,21 @@ fn windows_looked_at_in_waves_are_judged_as_one_at_a_time() {
     ];
     let budget = u.config.network_budget;
     let mut sequential = Vec::new();
-    let mut found: Vec<(Rect, Option<FaceReport>)> = Vec::new();
+    let mut found: Vec<FoundBox> = Vec::new();
     for (d, logit) in &windows {
         let look = if window_is_new(d, &found) {
             u.look_at_window(&gray, d, *logit, None, budget)
         } else {
-            (None, false)
+            BoxReading::NoFace
         };
-        if let Some(r) = look.0.filter(|r| proposal_shows(d, r)) {
-            found.push((d.face_box, Some(r)));
+        if let Some(r) = look.face().filter(|r| proposal_shows(d, r)) {
+            found.push(FoundBox::face(d.face_box, r));
         }
         sequential.push(look);
     }
-    assert!(sequential[1].0.is_some(), "the face's window finds it");
+    assert!(sequential[1].face().is_some(), "the face's window finds it");
     assert!(
-        sequential[3].0.is_none(),
+        sequential[3].face().is_none(),
         "the second window on it is skipped"
     );
     let waves = u.look_at_windows(&gray, &windows, None, budget, &[]);
@@ -835,11 +855,11 @@ fn a_second_look_displaces_only_weaker_windows_lower_scored_faces() {
             face_score: Some(face_score),
             ..face(Some(0.1), 0.9)
         };
-        (report.face_box, Some(report))
+        FoundBox::face(report.face_box, report)
     };
     assert!(!window_is_new(&landing, &[hiding(0.9)]));
     let budget = u.config.network_budget;
-    let judged = |hidden_by: (Rect, Option<FaceReport>), its_logit: f32| {
+    let judged = |hidden_by: FoundBox, its_logit: f32| {
         let mut found = vec![hidden_by];
         let second = [(landing, 5.0_f32)];
         u.take_second_looks(&gray, &second, None, budget, &mut found, vec![its_logit]);
@@ -848,7 +868,7 @@ fn a_second_look_displaces_only_weaker_windows_lower_scored_faces() {
     let weak = hiding(0.9);
     let found = judged(weak, 1.0);
     assert_eq!(found.len(), 1, "{found:?}");
-    let r = found[0].1.expect("the face");
+    let r = found[0].report.expect("the face");
     assert!(
         r.right_eye.midpoint(r.left_eye).distance(eyes) < 0.1 * distance,
         "{r:?}"

@@ -71,7 +71,7 @@ pub struct ProcessOptions {
     /// rotation flag: 0, 90, -90 or 180; other angles are not turned). The frames are analysed
     /// turned upright, so faces are found; turned a quarter (a phone held upright), they were
     /// read out along the picture's columns, and `k` is the displayed picture's vertical shear
-    /// ([`Unshear::face_by_columns`]), undone on the stored frames along their rows.
+    /// (`Unshear::face_by_columns`), undone on the stored frames along their rows.
     pub rotation: i32,
     /// How the frames, as given, were read out: [`Readout::Rows`] for a clip's stored frames
     /// (with [`Self::rotation`]), [`Readout::Columns`] for frames already turned upright from
@@ -492,10 +492,10 @@ impl<'a> VideoProcessor<'a> {
             unshear
                 .estimate_face(gray, face_box, start)
                 .filter(|r| crate::pipeline::follows(last, r))
-                .map(|r| (face_box, Some(r)))
+                .map(|r| crate::pipeline::FoundBox::face(face_box, r))
         };
         let before = moved.len();
-        let mut found: Vec<(Rect, Option<FaceReport>)> = if before > 1 {
+        let mut found: Vec<crate::pipeline::FoundBox> = if before > 1 {
             moved.par_iter().filter_map(follow).collect()
         } else {
             moved.iter().filter_map(follow).collect()
@@ -512,7 +512,7 @@ impl<'a> VideoProcessor<'a> {
             stats.full_detections += 1;
             unshear.find_new_faces(gray, params.detect_width, view_k, budget, &mut found);
         }
-        let mut faces: Vec<FaceReport> = found.into_iter().filter_map(|(_, r)| r).collect();
+        let mut faces: Vec<FaceReport> = found.into_iter().filter_map(|f| f.report).collect();
         faces.sort_by(|a, b| {
             let size = |f: &FaceReport| f.right_eye.distance(f.left_eye);
             size(b).total_cmp(&size(a))

@@ -93,10 +93,10 @@ pub fn evaluate_nostrils(
                     let ed = re.distance(le) * upscale;
                     let detected = found
                         .iter()
-                        .any(|(b, _)| b.contains(ure) && b.contains(ule));
+                        .any(|f| f.face_box.contains(ure) && f.face_box.contains(ule));
                     let hit = found
                         .iter()
-                        .filter_map(|(_, face)| face.as_ref())
+                        .filter_map(|f| f.report.as_ref())
                         .find(|d| d.face_box.contains(ure) && d.face_box.contains(ule));
                     Some(NostrilSample {
                         image: path.display().to_string(),

@@ -255,7 +255,7 @@ pub struct ShearSample {
     pub box_outside: Option<f64>,
     /// Where the located nose and mouth lie from the eyes' midpoint in the face's own frame
     /// (measured shear and roll undone), in eye distances: nose `x, y`, mouth `x, y`
-    /// ([`face_layout`]).
+    /// (`pipeline::confidence::face_layout`).
     pub layout: Option<[f64; 4]>,
     /// Milliseconds the pipeline took on the whole image (detection included).
     pub millis: f64,
@@ -445,8 +445,8 @@ fn run_one(
     };
     let unmatched = found
         .iter()
-        .filter_map(|(b, report)| {
-            let r = report.as_ref()?;
+        .filter_map(|found| {
+            let (b, r) = (&found.face_box, found.report.as_ref()?);
             let real = known
                 .iter()
                 .any(|f| b.contains(moved(f.right_eye)) && b.contains(moved(f.left_eye)));
@@ -469,10 +469,10 @@ fn run_one(
             let (re, le) = (moved(f.right_eye), moved(f.left_eye));
             let mut hits = found
                 .iter()
-                .filter(|(b, _)| b.contains(re) && b.contains(le));
+                .filter(|f| f.face_box.contains(re) && f.face_box.contains(le));
             let hit = hits.next();
-            let duplicates = hits.filter(|(_, r)| r.is_some()).count();
-            let report = hit.and_then(|(_, r)| r.as_ref());
+            let duplicates = hits.filter(|f| f.report.is_some()).count();
+            let report = hit.and_then(|f| f.report.as_ref());
             let ed = f.eye_distance();
             let oracle = f.nose.and_then(|n| {
                 let n = moved(n);

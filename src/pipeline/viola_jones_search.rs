@@ -6,8 +6,9 @@ use std::borrow::Cow;
 use image::GrayImage;
 use rayon::prelude::*;
 
-use super::combine::measured_shear;
-use super::report::FaceReport;
+use super::combine::{measured_shear, most_confident_of_overlapping};
+use super::proposals::{proposal_detections, proposal_is_new, proposal_shows};
+use super::report::FoundBox;
 use super::Unshear;
 use crate::config::Locator;
 use crate::detect::boxes::{box_around_eyes, eyes_in_box};
@@ -73,7 +74,7 @@ pub(crate) const PARALLEL_VIEWS_MAX_PIXELS: u64 = 4_000_000;
 /// de-sheared by 0.3 is a 1-gigapixel view). Ordinary shapes stay below it: a 9:16 portrait
 /// de-sheared by 0.45 and turned by 45 degrees is 3.6 times its input, a 4:1 panorama turned by
 /// 45 degrees 3.1 times (docs/performance.md#extreme-shapes).
-pub const MAX_VIEW_PIXELS_RATIO: f64 = 4.0;
+pub(crate) const MAX_VIEW_PIXELS_RATIO: f64 = 4.0;
 
 /// The pixels of the view of a `width` x `height` image de-sheared by `k` onto a widened canvas
 /// and then turned by `roll` radians (the bounding box of the turned canvas).
@@ -138,6 +139,7 @@ impl View {
 
 /// A detected face.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct Detection {
     /// The face box in input-image pixels: where the detector's box lies in the de-sheared view,
     /// moved back so that its eye row is where the face's eyes are in the input.
@@ -411,7 +413,7 @@ impl Unshear {
     /// [`MEASURED_VIEW_MIN_SHEAR`], or with each of [`TURNED_DESHEARED_SHEARS`] when no face was
     /// accepted; none when the faces found measure no shear. Each keeps its turned view's scale
     /// ladder (OpenCV's).
-    pub(crate) fn turned_desheared_views(&self, found: &[(Rect, Option<FaceReport>)]) -> Vec<View> {
+    pub(crate) fn turned_desheared_views(&self, found: &[FoundBox]) -> Vec<View> {
         let shears = match measured_shear(found) {
             Some(k) if k.abs() >= MEASURED_VIEW_MIN_SHEAR => vec![k],
             Some(_) => return Vec::new(),
@@ -440,7 +442,7 @@ impl Unshear {
     pub(crate) fn detections_in_measured_view(
         &self,
         gray: &GrayImage,
-        found: &[(Rect, Option<FaceReport>)],
+        found: &[FoundBox],
     ) -> Vec<Detection> {
         let Some(k) = measured_shear(found) else {
             return Vec::new();
@@ -450,9 +452,172 @@ impl Unshear {
         }
         self.detect_under_hypotheses((&self.detector, 1.0), gray, &[(k, 0.0)])
             .into_iter()
-            .filter(|d| found.iter().all(|(b, _)| b.iou(&d.face_box) < 0.3))
+            .filter(|d| found.iter().all(|f| f.face_box.iou(&d.face_box) < 0.3))
             .collect()
     }
+
+    /// The Viola-Jones search in every view of every image (the thorough search, or
+    /// [`Config::search_every_view`](crate::Config::search_every_view)): the image as it is and
+    /// every de-sheared and turned view at once, with the proposal windows added when the
+    /// thorough search has them, the fallback detector's pass only when the main one's faces
+    /// give no accepted estimate; then, thorough, the turned views of strong rolls again in the
+    /// image de-sheared by the shear its faces measured (or one step each way if none was
+    /// accepted): a face both rolled and sheared is upright in neither kind of view alone. Of
+    /// overlapping faces the one with the higher confidence is kept.
+    pub(crate) fn every_view_search(&self, gray: &GrayImage) -> Vec<FoundBox> {
+        let mut all: Vec<FoundBox> = Vec::new();
+        let thorough = self.thorough_detectors();
+
+        // A face is the first of its group's boxes that the network takes for one: the
+        // strongest box can be cropped worse than a weaker one from another view.
+        let faces = |mut found: Vec<Detection>| {
+            found.retain(|d| self.is_measurable(d));
+            overlapping_groups(found)
+                .into_iter()
+                .filter_map(|group| {
+                    tries_of_group(group)
+                        .into_iter()
+                        .find_map(|d| self.estimate_box(gray, d))
+                })
+                .collect::<Vec<_>>()
+        };
+        let views = self.every_view(thorough.is_some());
+        for (i, pass) in self.detector_passes().enumerate() {
+            let views_pass = match (i, thorough) {
+                (0, Some(t)) => (&t.views, 1.0),
+                _ => pass,
+            };
+            let mut found = self.detect_as_is(pass, gray);
+            found.extend(self.detect_in_views(views_pass, gray, &views));
+            all.extend(faces(found));
+            if let (0, Some(_), Some(net)) = (i, thorough, &self.proposals) {
+                // Strongest first, each judged against the faces found so far (the
+                // cascade's and the stronger windows').
+                for d in proposal_detections(net, gray, WEAK_BOX_MIN_WIDTH) {
+                    if !proposal_is_new(&d, &all) {
+                        continue;
+                    }
+                    if let Some(FoundBox {
+                        face_box,
+                        report: Some(r),
+                    }) = self.estimate_box(gray, d)
+                    {
+                        if proposal_shows(&d, &r) {
+                            all.push(FoundBox::face(face_box, r));
+                        }
+                    }
+                }
+            }
+            if any_accepted(&all) {
+                break;
+            }
+        }
+        if let Some(t) = thorough {
+            let views = self.turned_desheared_views(&all);
+            if !views.is_empty() {
+                // These views look for faces not found yet: a box, or the face it gives,
+                // holding the eyes of a face already found is that face again.
+                let found_eyes: Vec<(Point, Point)> = all
+                    .iter()
+                    .filter_map(|f| f.report.map(|r| (r.right_eye, r.left_eye)))
+                    .collect();
+                let holds_found = |b: &Rect| {
+                    found_eyes
+                        .iter()
+                        .any(|&(r, l)| b.contains(r) && b.contains(l))
+                };
+                let mut found = self.detect_in_views((&t.views, 1.0), gray, &views);
+                found.retain(|d| !holds_found(&d.face_box));
+                // The boxes kept hold no found face; the face a box gave may still be one.
+                let new = faces(found)
+                    .into_iter()
+                    .filter(|f| !f.report.is_some_and(|r| holds_found(&r.face_box)));
+                all.extend(new.collect::<Vec<_>>());
+            }
+        }
+        most_confident_of_overlapping(all)
+    }
+
+    /// The quick Viola-Jones search: the image as it is; the de-sheared retries (see
+    /// [`Self::detect`]) also run when every face found in the image as it is gave no accepted
+    /// estimate: a false detection, or a sheared face found but poorly measured, must not hide
+    /// a face the retries would find. The views are searched in groups of equal |k|, nearest
+    /// first, until one gives an accepted estimate. Of overlapping faces the one with the
+    /// higher confidence is kept.
+    ///
+    /// When the main detector's faces (as they are and in the retries) still give no accepted
+    /// estimate, the fallback detector, if set, goes through the same two steps and its faces
+    /// join the others.
+    pub(crate) fn quick_search(&self, gray: &GrayImage) -> Vec<FoundBox> {
+        let mut all: Vec<FoundBox> = Vec::new();
+        for (i, pass) in self.detector_passes().enumerate() {
+            all.extend(
+                self.detect_as_is(pass, gray)
+                    .into_iter()
+                    .filter_map(|d| self.estimate_box(gray, d)),
+            );
+            if any_accepted(&all) {
+                if i == 0 {
+                    // The usual case: the image as it is, in the detector's order, and any
+                    // faces the shear measured on these hid from the cascade after them.
+                    let more: Vec<Detection> = self.detections_in_measured_view(gray, &all);
+                    all.extend(more.into_iter().filter_map(|d| self.estimate_box(gray, d)));
+                    return all;
+                }
+                break;
+            }
+            for group in self.view_groups() {
+                let turned = group.iter().any(|&(_, roll)| roll != 0.0);
+                if turned && !all.is_empty() {
+                    // Turned views look for faces the cascade cannot see upright; a face already
+                    // found (if not trusted) is not searched for again at this extra cost.
+                    break;
+                }
+                all.extend(
+                    self.detect_under_hypotheses(pass, gray, &group)
+                        .into_iter()
+                        .filter_map(|d| self.estimate_box(gray, d)),
+                );
+                if any_accepted(&all) {
+                    break;
+                }
+            }
+            if any_accepted(&all) {
+                break;
+            }
+        }
+        most_confident_of_overlapping(all)
+    }
+
+    /// Whether the detection `d` is kept: a box the main detector's count would not have given
+    /// (the thorough search's lenient boxes) is kept only at a size where a face can be
+    /// measured, dropped before it is merged with others or costs the network a look.
+    fn is_measurable(&self, d: &Detection) -> bool {
+        let strict_neighbors = self.detector.params().min_neighbors;
+        (d.neighbors >= strict_neighbors && !d.near_miss) || d.face_box.width >= WEAK_BOX_MIN_WIDTH
+    }
+
+    /// The detection `d`'s box with the face estimated in it, if any; `None` with the network
+    /// when the box gives no face (its face score below the minimum, or no crop): the network
+    /// looked and saw no face there. A near miss stands as a face only on the network's strong
+    /// word ([`NEAR_MISS_MIN_FACE_SCORE`]).
+    fn estimate_box(&self, gray: &GrayImage, d: Detection) -> Option<FoundBox> {
+        let network = self.locator() == Locator::Network;
+        let report = self.estimate_detection(gray, &d).filter(|r| {
+            !d.near_miss || r.face_score.is_some_and(|s| s >= NEAR_MISS_MIN_FACE_SCORE)
+        });
+        (!network || report.is_some()).then_some(FoundBox {
+            face_box: d.face_box,
+            report,
+        })
+    }
+}
+
+/// Whether any face of `found` has an accepted estimate.
+fn any_accepted(found: &[FoundBox]) -> bool {
+    found
+        .iter()
+        .any(|f| f.report.is_some_and(|r| r.k.is_some()))
 }
 
 /// Where a point of a de-sheared view ([`desheared_view`]) is in the image it was made from.
