@@ -8,15 +8,16 @@
 //! row (equation 6).
 //!
 //! ```no_run
-//! use unshear::{Config, CorrectOptions, FileOptions, Unshear};
+//! use unshear::{Config, CorrectOptions, Error, FileOptions, Unshear};
 //!
 //! # fn main() -> unshear::Result<()> {
 //! let unshear = Unshear::new(Config::default())?;
 //! // Read with its EXIF orientation applied; written with its colour profile and EXIF.
-//! let report = unshear.estimate_file("photo.jpg")?;
-//! if report.k.is_some() {
-//!     let (options, file) = (CorrectOptions::default(), FileOptions::default());
-//!     unshear.correct_file("photo.jpg", "fixed.jpg", &options, &file)?;
+//! let (options, file) = (CorrectOptions::default(), FileOptions::default());
+//! match unshear.correct_file("photo.jpg", "fixed.jpg", &options, &file) {
+//!     Ok(report) => println!("k = {:+.3}", report.k.unwrap_or_default()),
+//!     Err(Error::InvalidArgument(why)) => eprintln!("not corrected: {why}"),
+//!     Err(e) => return Err(e),
 //! }
 //! # Ok(())
 //! # }
