@@ -46,7 +46,8 @@ fn retraining_reproduces_the_committed_filters() {
 /// at least 40 px the default search finds the faces, and the median estimate follows the shear
 /// (the full table is in the README).
 fn median_of(samples: &[&unshear::dev::eval::ShearSample]) -> f64 {
-    common::median(samples.iter().filter_map(|s| s.estimate).collect()).unwrap_or(f64::NAN)
+    unshear::internals::median(samples.iter().filter_map(|s| s.estimate).collect())
+        .unwrap_or(f64::NAN)
 }
 
 #[test]
@@ -94,7 +95,8 @@ fn caltech_slice_tracks_the_shear() {
         median_of(&at(0.3))
     );
     let median = |k: f64| {
-        common::median(at(k).iter().filter_map(|s| s.estimate).collect()).expect("estimates")
+        unshear::internals::median(at(k).iter().filter_map(|s| s.estimate).collect())
+            .expect("estimates")
     };
     // These 60 faces (printed above): all found at both shears, medians 0.012 and 0.312. The
     // bounds leave room for a face or two and a few thousandths, not for a broken stage.

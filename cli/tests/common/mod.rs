@@ -72,20 +72,3 @@ pub fn spawn_and_read_first_line(cmd: &mut Command) -> (Child, BufReader<ChildSt
     stdout.read_line(&mut first).expect("first line");
     (child, stdout, first)
 }
-
-/// The median of the finite values (the mean of the middle two for an even count), `None` when
-/// there are none.
-#[allow(dead_code)] // Not every test file uses every helper.
-pub fn median(mut values: Vec<f64>) -> Option<f64> {
-    values.retain(|v| v.is_finite());
-    if values.is_empty() {
-        return None;
-    }
-    values.sort_by(f64::total_cmp);
-    let n = values.len();
-    Some(if n % 2 == 1 {
-        values[n / 2]
-    } else {
-        (values[n / 2 - 1] + values[n / 2]) / 2.0
-    })
-}
