@@ -792,8 +792,13 @@ pub struct VideoArgs {
     /// rest untouched.
     #[arg(help_heading = "Rolling-shutter model", long, value_enum, default_value_t = RegionArg::Image)]
     pub region: RegionArg,
-    /// While the readout is being calibrated, hold back up to N frames (in memory) so that
-    /// they too are corrected from motion once it is known.
+    /// Calibrate the readout while correcting, in one pass over the input, even when it is a
+    /// file that can be read twice (by default a file is read twice: the readout calibrated
+    /// over the whole clip first, then every frame corrected with it).
+    #[arg(help_heading = "Rolling-shutter model", long)]
+    pub one_pass: bool,
+    /// In one pass (a pipe, or --one-pass), while the readout is being calibrated, hold back
+    /// up to N frames (in memory) so that they too are corrected from motion once it is known.
     #[arg(
         help_heading = "Rolling-shutter model",
         long,

@@ -31,12 +31,12 @@ use crate::{create_parent, interrupt, output_key, usage_error};
 use unshear::imageio::WriteOptions;
 use unshear::video::frames::{frame_gaps, list_frames, FrameFolderReader, FrameFolderWriter};
 use unshear::video::y4m::{Y4mReader, Y4mWriter};
-use unshear::video::FilterParams;
 use unshear::video::TrackerParams;
 use unshear::video::{
     run, Chroma, FrameResult, FrameSink, FrameSource, KSource, ProcessOptions, RunStats,
     ShearSource, VideoFormat, VideoProcessor,
 };
+use unshear::video::{Calibration, FilterParams};
 
 /// Two decimals: pixels per frame.
 fn r2(v: f64) -> f64 {
@@ -162,7 +162,17 @@ struct Ffmpeg {
 struct Prepared {
     ff: Ffmpeg,
     input: Option<(Probe, PendingDecoder)>,
+    /// How to start the input's decoder again, for a second pass.
+    decode: Option<Decode>,
     job: Option<EncodeJob>,
+}
+
+/// A video-file input's decoding command.
+#[derive(Clone)]
+struct Decode {
+    probe: Probe,
+    args: Vec<std::ffi::OsString>,
+    indexed: Option<u64>,
 }
 
 impl Ffmpeg {
@@ -191,6 +201,7 @@ impl Ffmpeg {
             return Ok(Prepared {
                 ff,
                 input: None,
+                decode: None,
                 job: None,
             });
         };
@@ -235,9 +246,15 @@ impl Ffmpeg {
             )?),
             None => None,
         };
+        let decode = Some(Decode {
+            probe: probe.clone(),
+            args,
+            indexed,
+        });
         Ok(Prepared {
             ff,
             input: Some((probe, decoder)),
+            decode,
             job,
         })
     }
@@ -256,6 +273,18 @@ struct Opened {
     expected: Option<u64>,
     /// A container input: its path and probe.
     container: Option<(PathBuf, Probe)>,
+}
+
+/// The input read again from the start, for the second of two passes (a file, not a pipe).
+fn reopen_input(a: &VideoArgs, ff: Option<&Ffmpeg>, decode: Option<&Decode>) -> Result<Opened> {
+    let decoder = match (ff, decode) {
+        (Some(ff), Some(d)) => {
+            let pending = PendingDecoder::spawn(&ff.tools, &d.args, &a.input, d.indexed)?;
+            Some((d.probe.clone(), pending))
+        }
+        _ => None,
+    };
+    open_input(a, decoder)
 }
 
 /// The input's frames; a video file's probe and decoder from [`Ffmpeg::prepare`].
@@ -365,8 +394,7 @@ pub fn calibrate(c: CalibrateArgs) -> Result<bool> {
 }
 
 /// Prints what `unshear calibrate` found; false when the readout could not be found.
-fn print_calibration(stats: &RunStats, fps: f64, json: bool) -> bool {
-    let c = stats.calibration;
+fn print_calibration(c: Option<Calibration>, frames: u64, fps: f64, json: bool) -> bool {
     // A fit whose uncertainty is half its value or more says nothing: the faces hardly moved.
     let found = c.filter(|c| {
         c.readout_fraction > 0.0
@@ -397,7 +425,7 @@ fn print_calibration(stats: &RunStats, fps: f64, json: bool) -> bool {
             "frames_used": found.map_or(0, |c| c.frames),
             "readings": found.map_or(0, |c| c.samples),
             "tracks": found.map_or(0, |c| c.tracks),
-            "frames": stats.frames,
+            "frames": frames,
             "reason": reason,
         });
         println!("{value}");
@@ -505,9 +533,9 @@ fn video_or_calibrate(a: VideoArgs, calibrate: Option<bool>) -> Result<bool> {
         (models, prepared)
     });
     let unshear = models?;
-    let (ffmpeg, decoder, mut job) = match prepared.transpose()? {
-        Some(p) => (Some(p.ff), p.input, p.job),
-        None => (None, None, None),
+    let (ffmpeg, decoder, decode, mut job) = match prepared.transpose()? {
+        Some(p) => (Some(p.ff), p.input, p.decode, p.job),
+        None => (None, None, None, None),
     };
     let input = open_input(&a, decoder)?;
     let Opened {
@@ -566,7 +594,26 @@ fn video_or_calibrate(a: VideoArgs, calibrate: Option<bool>) -> Result<bool> {
         calibration_window,
         ..ProcessOptions::default()
     };
+    let rotation = options.rotation;
     let mut processor = VideoProcessor::new(&unshear, options);
+    if let Some(json) = calibrate {
+        let mut progress = Progress::new(expected, "unshear calibrate");
+        let frames = unshear::video::analyse(source.as_mut(), &mut processor, || progress.frame())?;
+        progress.finish();
+        return Ok(print_calibration(
+            processor.calibration(),
+            frames as u64,
+            fps,
+            json,
+        ));
+    }
+    // A file is read twice: the readout calibrated over the whole clip, then every frame
+    // corrected with it. A pipe is read once, calibrating while correcting.
+    let two_pass = !a.one_pass
+        && readout_fraction.is_none()
+        && !a.no_motion
+        && rotation == 0
+        && !is_stdio(&a.input);
     let write_options = WriteOptions {
         overwrite: a.force,
         protected: protected.clone(),
@@ -595,7 +642,16 @@ fn video_or_calibrate(a: VideoArgs, calibrate: Option<bool>) -> Result<bool> {
         }
     };
     let mut json_error: Option<std::io::Error> = None;
-    let mut progress = Progress::new(expected);
+    let mut analysed = 0.0;
+    if two_pass {
+        let mut first = Progress::new(expected, "unshear video: analysing");
+        let start = std::time::Instant::now();
+        unshear::video::analyse(source.as_mut(), &mut processor, || first.frame())?;
+        first.finish();
+        analysed = start.elapsed().as_secs_f64();
+        source = reopen_input(&a, ffmpeg.as_ref(), decode.as_ref())?.source;
+    }
+    let mut progress = Progress::new(expected, "unshear video");
     let mut frames_with_faces = 0u64;
     let mut frames_measured = 0u64;
     let mut on_frame = |r: &FrameResult| {
@@ -615,29 +671,29 @@ fn video_or_calibrate(a: VideoArgs, calibrate: Option<bool>) -> Result<bool> {
         progress.frame();
     };
 
+    let mut pass = |source: &mut dyn FrameSource, sink: Option<&mut dyn FrameSink>| {
+        if two_pass {
+            unshear::video::replay(source, sink, &mut processor, &mut on_frame)
+        } else {
+            run(source, sink, &mut processor, &mut on_frame)
+        }
+    };
     let mut written = None;
-    let stats: RunStats = match &output {
-        Output::None => run(source.as_mut(), None, &mut processor, &mut on_frame)?,
+    let mut stats: RunStats = match &output {
+        Output::None => pass(source.as_mut(), None)?,
         Output::Stdout => {
             let w = BufWriter::with_capacity(1 << 20, std::io::stdout());
             let mut sink = y4m_sink(w, header.as_deref(), &format)?;
-            run(
-                source.as_mut(),
-                Some(&mut sink),
-                &mut processor,
-                &mut on_frame,
-            )?
+            pass(source.as_mut(), Some(&mut sink))?
         }
         Output::Y4mFile(o) => {
             create_parent(o)?;
             let mut stats = None;
             unshear::imageio::write_atomic(o, &write_options, |w| {
                 let mut sink = y4m_sink(w, header.as_deref(), &format)?;
-                stats = Some(run(
+                stats = Some(pass(
                     source.as_mut(),
                     Some(&mut sink as &mut dyn FrameSink),
-                    &mut processor,
-                    &mut on_frame,
                 )?);
                 Ok(())
             })
@@ -646,13 +702,8 @@ fn video_or_calibrate(a: VideoArgs, calibrate: Option<bool>) -> Result<bool> {
         }
         Output::Folder(dir) => {
             let mut sink = FrameFolderWriter::new(dir, &a.frame_format, write_options.clone())?;
-            let stats = run(
-                source.as_mut(),
-                Some(&mut sink),
-                &mut processor,
-                &mut on_frame,
-            )
-            .with_context(|| format!("writing frames into {}", dir.display()))?;
+            let stats = pass(source.as_mut(), Some(&mut sink))
+                .with_context(|| format!("writing frames into {}", dir.display()))?;
             sink.commit()
                 .with_context(|| format!("writing frames into {}", dir.display()))?;
             let later = sink.later_frames();
@@ -679,12 +730,13 @@ fn video_or_calibrate(a: VideoArgs, calibrate: Option<bool>) -> Result<bool> {
                 )?,
             };
             let (stats, plan) = job.finish(&a, ff, header.as_deref(), &format, |sink| {
-                run(source.as_mut(), Some(sink), &mut processor, &mut on_frame)
+                pass(source.as_mut(), Some(sink))
             })?;
             written = Some((o.clone(), plan));
             stats
         }
     };
+    stats.seconds += analysed;
     progress.finish();
     if let Some(out) = json_out.as_mut() {
         if let Err(e) = out.flush() {
@@ -700,9 +752,6 @@ fn video_or_calibrate(a: VideoArgs, calibrate: Option<bool>) -> Result<bool> {
     if let Some((tmp, p)) = json_tmp {
         tmp.persist(&p, a.force)
             .with_context(|| format!("writing {}", p.display()))?;
-    }
-    if let Some(json) = calibrate {
-        return Ok(print_calibration(&stats, fps, json));
     }
     let speed = stats.frames as f64 / stats.seconds.max(1e-9);
     eprintln!(
@@ -778,7 +827,7 @@ fn describe_model(stats: &RunStats, given: bool, motion: bool) -> String {
                          from the faces alone (give --readout-fraction to correct by motion)"
             .to_string(),
         (None, Some(c)) => format!(
-            "readout fraction not found to 3% ({:.3} +- {:.3} from {} readings): k came \
+            "readout fraction not found to 10% ({:.3} +- {:.3} from {} readings): k came \
              from the faces alone (give --readout-fraction to correct by motion)",
             c.readout_fraction, c.uncertainty, c.samples
         ),
@@ -1100,7 +1149,8 @@ struct Progress {
 }
 
 impl Progress {
-    fn new(expected: Option<u64>) -> Self {
+    /// A bar (on a terminal) headed by `what`.
+    fn new(expected: Option<u64>, what: &str) -> Self {
         if !std::io::stderr().is_terminal() {
             return Self {
                 bar: ProgressBar::hidden(),
@@ -1108,11 +1158,11 @@ impl Progress {
         }
         let bar = ProgressBar::with_draw_target(expected, ProgressDrawTarget::stderr_with_hz(4));
         let template = if expected.is_some() {
-            "unshear video {bar:30} {pos}/{len} frames, {fps}, {eta} left"
+            format!("{what} {{bar:30}} {{pos}}/{{len}} frames, {{fps}}, {{eta}} left")
         } else {
-            "unshear video {spinner} {pos} frames, {fps}"
+            format!("{what} {{spinner}} {{pos}} frames, {{fps}}")
         };
-        if let Ok(style) = ProgressStyle::with_template(template) {
+        if let Ok(style) = ProgressStyle::with_template(&template) {
             bar.set_style(style.with_key(
                 "fps",
                 |state: &ProgressState, w: &mut dyn std::fmt::Write| {

@@ -152,6 +152,41 @@ fn a_pan_is_corrected_from_motion_with_the_readout_calibrated_from_the_faces() {
     assert!(within > faces_within, "{within} vs {faces_within}");
 }
 
+/// Two passes over the same pan (as `unshear video` reads a file): the readout calibrated over
+/// the whole clip first, then every frame corrected from motion with it, the first frames too.
+#[test]
+fn two_passes_correct_every_frame_with_the_clips_readout() {
+    let rho = 0.8;
+    let v = 0.25 * f64::from(H) / rho;
+    let (frames, truth) = render(faces_scene(), params(Profile::Pause { v }, rho, 72));
+    let unshear = video_unshear();
+    let options = ProcessOptions {
+        network_budget: unshear.config().network_budget,
+        ..ProcessOptions::default()
+    };
+    let mut p = VideoProcessor::new(&unshear, options);
+    for f in &frames {
+        p.analyse_frame(f);
+    }
+    assert_eq!(p.end_analysis(), frames.len());
+    let found = p.readout_fraction().expect("the readout was calibrated");
+    let results: Vec<FrameResult> = frames
+        .iter()
+        .map(|f| p.replay(f.clone()).expect("replay").1)
+        .collect();
+    assert!(p.replay(frames[0].clone()).is_err(), "one frame too many");
+    let within = share_within(&results, &truth, 0, 0.01);
+    eprintln!("two passes: readout fraction {found:.4} (true {rho}); k within 0.01: {within:.3}");
+    assert!((found - rho).abs() <= 0.03 * rho, "rho {found}");
+    assert!(
+        results
+            .iter()
+            .all(|r| r.k_source == ShearSource::Motion && r.readout_fraction == Some(found)),
+        "every frame from motion with the clip's readout"
+    );
+    assert!(within >= 0.95, "{within}");
+}
+
 /// With the readout given, frames without any face (a textured wall) get their shear from
 /// motion alone, even when the pan changes speed within a frame (per-row offsets, a curve).
 #[test]
@@ -262,6 +297,34 @@ fn calibrate_and_video_on_the_command_line() {
         lines[0]
     );
     assert_eq!(lines[5]["readout_fraction"].as_f64(), Some(0.8));
+
+    // Without a readout, a file is read twice: every frame from motion, with the readout
+    // calibrated over the whole clip; from a pipe, once (the first frames from the faces until
+    // the readout is known, unless held).
+    let out = unshear_cmd()
+        .args(["video", "--json"])
+        .arg(&clip)
+        .assert()
+        .success();
+    let lines = common::json_lines(&out.get_output().stdout);
+    assert_eq!(lines.len(), 60);
+    let used = lines[0]["readout_fraction"].as_f64().expect("calibrated");
+    assert!((used - rho).abs() <= 0.05 * rho, "{used}");
+    assert!(
+        lines
+            .iter()
+            .all(|l| l["k_source"] == "motion" && l["readout_fraction"].as_f64() == Some(used)),
+        "{:?}",
+        lines[0]
+    );
+    let out = unshear_cmd()
+        .args(["video", "--json", "--one-pass", "--calibration-window", "0"])
+        .arg(&clip)
+        .assert()
+        .success();
+    let lines = common::json_lines(&out.get_output().stdout);
+    assert_eq!(lines.len(), 60);
+    assert_ne!(lines[0]["k_source"], "motion", "{:?}", lines[0]);
 
     for bad in ["1.5", "0", "-0.2", "nan"] {
         unshear_cmd()

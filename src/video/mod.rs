@@ -58,6 +58,7 @@
 //! position `vs * yc + o`, read linearly between luma rows; a shift is divided by `hs`, a
 //! source row `s` becomes chroma row `(s - o) / vs`.
 
+pub(crate) mod anchors;
 pub mod color;
 pub mod frames;
 pub(crate) mod motion;
@@ -69,8 +70,8 @@ pub mod y4m;
 
 pub use motion::MotionParams;
 pub use process::{
-    run, FrameResult, FrameSink, FrameSource, KSource, ProcessOptions, RunStats, ShearSource,
-    SourceCounts, VideoProcessor, DEFAULT_CALIBRATION_WINDOW,
+    analyse, replay, run, FrameResult, FrameSink, FrameSource, KSource, ProcessOptions, RunStats,
+    ShearSource, SourceCounts, VideoProcessor, DEFAULT_CALIBRATION_WINDOW,
 };
 pub use readout::{check_readout_fraction, Calibration, CalibrationParams, MAX_READOUT_FRACTION};
 pub use temporal::{FilterParams, Update, DEFAULT_SMOOTHING_LAG};

@@ -11,6 +11,7 @@ use image::GrayImage;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use super::anchors::{SceneAnchors, ScenePlace};
 use super::motion::{BandShift, FrameShift, MotionEstimator, MotionParams};
 use super::readout::{
     row_time, Calibration, CalibrationParams, ReadoutCalibrator, RowMotion, ShearSample,
@@ -192,6 +193,8 @@ const MAX_READINGS: usize = 4000;
 /// One face's shear reading for the readout's calibration.
 #[derive(Debug, Clone, Copy)]
 struct Reading {
+    /// The face's identity for the calibration: its place in the scene when it moves with
+    /// the scene (see [`SceneAnchors`]), else its track.
     track: u64,
     frame: u64,
     k: f64,
@@ -214,6 +217,8 @@ struct TrackPoint {
     weight: f64,
     /// Its displacement from the frame before, when the track was there.
     velocity: Option<(f64, f64)>,
+    /// Its place in the scene, through the camera's measured motion.
+    place: ScenePlace,
 }
 
 /// How the frames' `k` were found over a run.
@@ -273,6 +278,10 @@ pub struct VideoProcessor<'a> {
     /// The faces of the last two frames analysed (oldest first), with their frame numbers.
     recent: VecDeque<(u64, Vec<TrackPoint>)>,
     next_track: u64,
+    /// Where the view is in the scene, and the scene's faces seen so far.
+    anchors: SceneAnchors,
+    /// The frame size of a first pass ([`Self::analyse_frame`]).
+    analysed_size: Option<(u32, u32)>,
     counts: SourceCounts,
 }
 
@@ -301,6 +310,8 @@ impl<'a> VideoProcessor<'a> {
             window_closed: false,
             recent: VecDeque::with_capacity(3),
             next_track: 0,
+            anchors: SceneAnchors::default(),
+            analysed_size: None,
             counts: SourceCounts::default(),
         }
     }
@@ -361,6 +372,7 @@ impl<'a> VideoProcessor<'a> {
             || self.faces_in(gray),
         );
         self.motion = motion;
+        self.anchors.advance(shift.as_ref().map(|s| (s.dx, s.dy)));
         let before_last = std::mem::replace(&mut self.last_shift, shift.clone());
         self.prev_prev_shift = std::mem::replace(&mut self.prev_shift, before_last);
         if self.options.rotation.abs() == 90 || self.options.readout == Readout::Columns {
@@ -563,13 +575,17 @@ impl<'a> VideoProcessor<'a> {
                     (self.next_track - 1, None)
                 }
             };
+            let k = f.k.filter(|_| f.refused.is_none());
             points.push(TrackPoint {
                 track,
                 mid,
                 eye_distance,
-                k: f.k.filter(|_| f.refused.is_none()),
+                k,
                 weight: f.confidence.clamp(0.1, 1.0),
                 velocity,
+                place: self
+                    .anchors
+                    .place(mid.x, mid.y, k.unwrap_or(0.0), f64::from(height) / 2.0),
             });
         }
         if self.motion_model() {
@@ -597,6 +613,15 @@ impl<'a> VideoProcessor<'a> {
         let frame = *frame;
         self.height = height;
         let mut added = false;
+        // The content's mean velocity through the frame: a face moving with it is part of the
+        // scene, recognised by its place there when it comes back into view.
+        let shifts: Vec<f64> = [&self.prev_shift, &self.last_shift]
+            .into_iter()
+            .flatten()
+            .map(|s| s.dx)
+            .collect();
+        let background =
+            (!shifts.is_empty()).then(|| shifts.iter().sum::<f64>() / shifts.len() as f64);
         for p in points {
             let Some(k) = p.k else { continue };
             if self.readings.len() >= MAX_READINGS {
@@ -611,8 +636,14 @@ impl<'a> VideoProcessor<'a> {
                 (Some(a), None) | (None, Some(a)) => a.0,
                 (None, None) => continue,
             };
+            let still = background.is_some_and(|b| (own - b).abs() <= 3.0 + 0.1 * b.abs());
+            let track = if still {
+                self.anchors.identify(p.track, p.place, p.eye_distance)
+            } else {
+                p.track
+            };
             self.readings.push(Reading {
-                track: p.track,
+                track,
                 frame,
                 k,
                 weight: p.weight,
@@ -742,6 +773,63 @@ impl<'a> VideoProcessor<'a> {
             p.smoothed = ks.next().or(Some(p.result.k_causal));
         }
         self.drain(true)
+    }
+
+    /// The first of two passes over a clip (a file can be read twice): analyses one frame
+    /// (tracks, estimates, measures motion, collects the readout's calibration readings) and
+    /// keeps its results, not its pixels. After the last frame, [`Self::end_analysis`]; then
+    /// the same frames again, in order, through [`Self::replay`].
+    pub fn analyse_frame(&mut self, frame: &VideoFrame) {
+        self.analysed_size.get_or_insert(frame.dimensions());
+        let (entry, due) = self.analyse(&frame.luma());
+        self.pending.push_back(entry);
+        if let Some(k) = due {
+            if let Some(p) = self.pending.iter_mut().find(|p| p.smoothed.is_none()) {
+                p.smoothed = Some(k);
+            }
+        }
+    }
+
+    /// The end of the first pass: every frame's `k` smoothed over the whole clip and the
+    /// readout fitted to every reading of it, so that the second pass corrects every frame
+    /// with the clip's readout (when it was found). Returns the frames analysed.
+    pub fn end_analysis(&mut self) -> usize {
+        let ks = self.smoother.flush();
+        let mut ks = ks.into_iter();
+        for p in self.pending.iter_mut().filter(|p| p.smoothed.is_none()) {
+            p.smoothed = ks.next().or(Some(p.result.k_causal));
+        }
+        if self.motion_model() && !self.readings.is_empty() {
+            self.refit();
+        }
+        // Nothing is held in the second pass.
+        self.window_closed = true;
+        self.pending.len()
+    }
+
+    /// The second pass: the next frame of the clip analysed by [`Self::analyse_frame`],
+    /// corrected as [`Self::process`] would with the readout found over the whole clip.
+    ///
+    /// # Errors
+    /// [`crate::Error::InvalidArgument`] when more frames come than were analysed; else as
+    /// [`Self::process`].
+    pub fn replay(&mut self, frame: VideoFrame) -> Result<(VideoFrame, FrameResult)> {
+        let Some(mut entry) = self.pending.pop_front() else {
+            return Err(crate::Error::InvalidArgument(
+                "the second pass has more frames than the first analysed".into(),
+            ));
+        };
+        if self
+            .analysed_size
+            .is_some_and(|size| size != frame.dimensions())
+        {
+            return Err(crate::Error::InvalidArgument(
+                "the second pass's frames differ from the first's".into(),
+            ));
+        }
+        entry.frame = frame;
+        let k = entry.smoothed.unwrap_or(entry.result.k_causal);
+        self.emit(entry, k)
     }
 
     /// Returns the frames at the front that are due: smoothed, and not held for the readout.
@@ -1000,22 +1088,75 @@ pub fn run(
     source: &mut dyn FrameSource,
     sink: Option<&mut dyn FrameSink>,
     processor: &mut VideoProcessor<'_>,
+    on_frame: impl FnMut(&FrameResult),
+) -> Result<RunStats> {
+    run_pass(source, sink, processor, on_frame, false)
+}
+
+/// The first of two passes over a clip: analyses every frame of `source` (see
+/// [`VideoProcessor::analyse_frame`]), calling `on_frame` after each, and ends the analysis;
+/// returns the frames analysed. [`replay`] is the second pass.
+///
+/// # Errors
+/// The source's first error.
+pub fn analyse(
+    source: &mut dyn FrameSource,
+    processor: &mut VideoProcessor<'_>,
+    mut on_frame: impl FnMut(),
+) -> Result<usize> {
+    let (tx, rx) = mpsc::sync_channel::<Result<VideoFrame>>(QUEUE);
+    std::thread::scope(|scope| -> Result<()> {
+        scope.spawn(move || read_into(source, tx));
+        for item in rx {
+            processor.analyse_frame(&item?);
+            on_frame();
+        }
+        Ok(())
+    })?;
+    Ok(processor.end_analysis())
+}
+
+/// The second of two passes: the frames of `source` (the clip [`analyse`] went through,
+/// read again) corrected with what the first pass found and written to `sink`, as [`run`].
+///
+/// # Errors
+/// As [`run`]; [`crate::Error::Video`] when `source` ends before every analysed frame came.
+pub fn replay(
+    source: &mut dyn FrameSource,
+    sink: Option<&mut dyn FrameSink>,
+    processor: &mut VideoProcessor<'_>,
+    on_frame: impl FnMut(&FrameResult),
+) -> Result<RunStats> {
+    run_pass(source, sink, processor, on_frame, true)
+}
+
+/// Sends the frames of `source` down `tx` until the end, an error, or the receiver is gone.
+fn read_into(source: &mut dyn FrameSource, tx: mpsc::SyncSender<Result<VideoFrame>>) {
+    loop {
+        let next = source.next_frame().transpose();
+        let Some(item) = next else { break };
+        let failed = item.is_err();
+        // The receiver is gone only when processing stopped; nothing more to read then.
+        if tx.send(item).is_err() || failed {
+            break;
+        }
+    }
+}
+
+/// [`run`], or with `second` [`replay`].
+fn run_pass(
+    source: &mut dyn FrameSource,
+    sink: Option<&mut dyn FrameSink>,
+    processor: &mut VideoProcessor<'_>,
     mut on_frame: impl FnMut(&FrameResult),
+    second: bool,
 ) -> Result<RunStats> {
     let start = Instant::now();
     let (in_tx, in_rx) = mpsc::sync_channel::<Result<VideoFrame>>(QUEUE);
     let (out_tx, out_rx) = mpsc::sync_channel::<VideoFrame>(QUEUE);
     let mut frames = 0u64;
     std::thread::scope(|scope| -> Result<()> {
-        scope.spawn(move || loop {
-            let next = source.next_frame().transpose();
-            let Some(item) = next else { break };
-            let failed = item.is_err();
-            // The receiver is gone only when processing stopped; nothing more to read then.
-            if in_tx.send(item).is_err() || failed {
-                break;
-            }
-        });
+        scope.spawn(move || read_into(source, in_tx));
         let writer = scope.spawn(move || -> Result<()> {
             let Some(sink) = sink else {
                 for _ in out_rx {}
@@ -1042,11 +1183,25 @@ pub fn run(
                         break;
                     }
                 };
-                for out in processor.process(frame)? {
+                let out = if second {
+                    vec![processor.replay(frame)?]
+                } else {
+                    processor.process(frame)?
+                };
+                for out in out {
                     if !deliver(out) {
                         return Ok(());
                     }
                 }
+            }
+            if second {
+                let left = processor.pending();
+                if read_error.is_none() && left > 0 {
+                    read_error = Some(crate::Error::Video(format!(
+                        "the second pass over the clip ended {left} frames before the first"
+                    )));
+                }
+                return read_error.map_or(Ok(()), Err);
             }
             // The frames held for the smoother go out even when the source failed, so that a
             // truncated stream yields every frame read before the error.

@@ -281,10 +281,22 @@ fn run_clip(
         let mut processor = VideoProcessor::new(unshear, process);
         let start = Instant::now();
         let mut results: Vec<FrameResult> = Vec::with_capacity(frames.len());
-        for f in &frames {
-            results.extend(processor.process(f.clone())?.into_iter().map(|(_, r)| r));
+        if mode == Mode::Calibrated {
+            // As `unshear video` runs on a file: the readout calibrated over the whole clip
+            // first, then every frame corrected with it.
+            for f in &frames {
+                processor.analyse_frame(f);
+            }
+            processor.end_analysis();
+            for f in &frames {
+                results.push(processor.replay(f.clone())?.1);
+            }
+        } else {
+            for f in &frames {
+                results.extend(processor.process(f.clone())?.into_iter().map(|(_, r)| r));
+            }
+            results.extend(processor.finish()?.into_iter().map(|(_, r)| r));
         }
-        results.extend(processor.finish()?.into_iter().map(|(_, r)| r));
         let seconds = start.elapsed().as_secs_f64();
         runs.push(score(
             mode,
