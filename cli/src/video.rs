@@ -395,7 +395,8 @@ pub fn calibrate(c: CalibrateArgs) -> Result<bool> {
 
 /// Prints what `unshear calibrate` found; false when the readout could not be found.
 fn print_calibration(c: Option<Calibration>, frames: u64, fps: f64, json: bool) -> bool {
-    // A fit whose uncertainty is half its value or more says nothing: the faces hardly moved.
+    // A fit whose uncertainty is half its value or more says nothing: the faces hardly moved
+    // and the motion kept one speed.
     let found = c.filter(|c| {
         c.readout_fraction > 0.0
             && c.readout_fraction <= unshear::video::MAX_READOUT_FRACTION
@@ -404,12 +405,12 @@ fn print_calibration(c: Option<Calibration>, frames: u64, fps: f64, json: bool) 
     let reason = match (c, found) {
         (_, Some(_)) => None,
         (None, _) => Some(
-            "no face was seen moving (a still camera and still faces, or no face): the \
-             readout cannot be found from this clip",
+            "no face was seen moving and the motion never changed speed (a still camera, or \
+             a steady pan without faces): the readout cannot be found from this clip",
         ),
         (Some(c), None) if c.uncertainty >= 0.5 * c.readout_fraction.abs() => Some(
-            "the faces hardly moved: the readout cannot be found from this clip; try one \
-             with a pan",
+            "the faces hardly moved and the motion kept one speed: the readout cannot be \
+             found from this clip; try one with a pan that stops, turns or shakes",
         ),
         (Some(_), None) => Some(
             "the faces' shear does not follow their motion as a rolling shutter's would (a \
@@ -425,6 +426,7 @@ fn print_calibration(c: Option<Calibration>, frames: u64, fps: f64, json: bool) 
             "frames_used": found.map_or(0, |c| c.frames),
             "readings": found.map_or(0, |c| c.samples),
             "tracks": found.map_or(0, |c| c.tracks),
+            "motion_pairs": found.map_or(0, |c| c.motion_pairs),
             "frames": frames,
             "reason": reason,
         });
@@ -433,9 +435,14 @@ fn print_calibration(c: Option<Calibration>, frames: u64, fps: f64, json: bool) 
     match (found, reason) {
         (Some(c), _) => {
             if !json {
+                let motion = if c.motion_pairs > 0 {
+                    format!(" and the motion of {} frame pairs", c.motion_pairs)
+                } else {
+                    String::new()
+                };
                 println!(
                     "readout fraction {:.3} +- {:.3} ({:.2} ms at {fps:.3} fps), from {} face \
-                     readings in {} frames ({} faces)",
+                     readings in {} frames ({} faces){motion}",
                     c.readout_fraction,
                     c.uncertainty,
                     c.readout_ms(fps),
@@ -818,13 +825,22 @@ fn describe_model(stats: &RunStats, given: bool, motion: bool) -> String {
         _ if !motion => "the faces alone (--no-motion)".to_string(),
         (Some(rho), _) if given => format!("readout fraction {rho:.3} (given)"),
         (Some(rho), Some(c)) => format!(
-            "readout fraction {rho:.3} calibrated from the faces ({:.3} +- {:.3} over the \
-             whole clip, {} readings)",
-            c.readout_fraction, c.uncertainty, c.samples
+            "readout fraction {rho:.3} calibrated from {} ({:.3} +- {:.3} over the whole \
+             clip, {} face readings, {} frame pairs of changing motion)",
+            match (c.samples > 0, c.motion_pairs > 0) {
+                (true, true) => "the faces and the motion",
+                (false, true) => "the motion",
+                _ => "the faces",
+            },
+            c.readout_fraction,
+            c.uncertainty,
+            c.samples,
+            c.motion_pairs
         ),
         (Some(rho), None) => format!("readout fraction {rho:.3}"),
-        (None, None) => "readout fraction not found: no face was seen moving, so k came \
-                         from the faces alone (give --readout-fraction to correct by motion)"
+        (None, None) => "readout fraction not found: no face was seen moving and the motion \
+                         never changed speed, so k came from the faces alone (give \
+                         --readout-fraction to correct by motion)"
             .to_string(),
         (None, Some(c)) => format!(
             "readout fraction not found to 10% ({:.3} +- {:.3} from {} readings): k came \

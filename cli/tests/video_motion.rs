@@ -187,6 +187,42 @@ fn two_passes_correct_every_frame_with_the_clips_readout() {
     assert!(within >= 0.95, "{within}");
 }
 
+/// A hand-held shake over a wall without faces: the readout comes from the motion alone (the
+/// band displacements only fit one smooth velocity curve at the true readout), and every frame
+/// is corrected from motion with it.
+#[test]
+fn a_shake_without_faces_calibrates_from_the_motion_alone() {
+    let rho = 0.8;
+    let v = 0.25 * f64::from(H) / rho;
+    let (frames, truth) = render(
+        Scene::textured(1600, H, 4),
+        params(Profile::Shaky { v, seed: 3 }, rho, 48),
+    );
+    let unshear = video_unshear();
+    let options = ProcessOptions {
+        network_budget: unshear.config().network_budget,
+        ..ProcessOptions::default()
+    };
+    let mut p = VideoProcessor::new(&unshear, options);
+    for f in &frames {
+        p.analyse_frame(f);
+    }
+    p.end_analysis();
+    let c = p.calibration().expect("calibrated");
+    eprintln!("readout from the motion alone: {c:?} (true {rho})");
+    assert_eq!(c.samples, 0, "no face");
+    assert!(c.motion_pairs >= 8, "{c:?}");
+    assert!((c.readout_fraction - rho).abs() <= 0.03 * rho, "{c:?}");
+    assert_eq!(p.readout_fraction(), Some(c.readout_fraction));
+    let results: Vec<FrameResult> = frames
+        .iter()
+        .map(|f| p.replay(f.clone()).expect("replay").1)
+        .collect();
+    assert!(results.iter().all(|r| r.k_source == ShearSource::Motion));
+    let within = share_within(&results, &truth, 0, 0.01);
+    assert!(within >= 0.95, "{within}");
+}
+
 /// With the readout given, frames without any face (a textured wall) get their shear from
 /// motion alone, even when the pan changes speed within a frame (per-row offsets, a curve).
 #[test]

@@ -65,6 +65,7 @@ pub(crate) mod motion;
 pub(crate) mod process;
 pub(crate) mod readout;
 pub(crate) mod temporal;
+pub(crate) mod timing;
 pub(crate) mod tracker;
 pub mod y4m;
 

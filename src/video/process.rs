@@ -18,6 +18,7 @@ use super::readout::{
     VelocityCurve, VelocitySample,
 };
 use super::temporal::{FilterParams, ShearSmoother, Update, DEFAULT_SMOOTHING_LAG};
+use super::timing::{readout_from_motion, BandReading};
 use super::tracker::{FaceTracker, TrackerParams, TrackerStats};
 use super::VideoFrame;
 use crate::locate::network::Budget;
@@ -190,6 +191,9 @@ struct Pending {
 /// camera's readout is a constant, known well long before).
 const MAX_READINGS: usize = 4000;
 
+/// Frame pairs kept for the readout from the motion alone (30 s at 30 frames/s).
+const MAX_TIMING_PAIRS: usize = 900;
+
 /// One face's shear reading for the readout's calibration.
 #[derive(Debug, Clone, Copy)]
 struct Reading {
@@ -280,6 +284,9 @@ pub struct VideoProcessor<'a> {
     next_track: u64,
     /// Where the view is in the scene, and the scene's faces seen so far.
     anchors: SceneAnchors,
+    /// Every band displacement measured (up to [`MAX_TIMING_PAIRS`] frame pairs), for the
+    /// readout from the motion alone.
+    motion_bands: Vec<BandReading>,
     /// The frame size of a first pass ([`Self::analyse_frame`]).
     analysed_size: Option<(u32, u32)>,
     counts: SourceCounts,
@@ -312,6 +319,7 @@ impl<'a> VideoProcessor<'a> {
             next_track: 0,
             anchors: SceneAnchors::default(),
             analysed_size: None,
+            motion_bands: Vec::new(),
             counts: SourceCounts::default(),
         }
     }
@@ -373,6 +381,19 @@ impl<'a> VideoProcessor<'a> {
         );
         self.motion = motion;
         self.anchors.advance(shift.as_ref().map(|s| (s.dx, s.dy)));
+        let index = self.next_index;
+        if let Some(s) = shift.as_ref().filter(|_| index > 0) {
+            if self.motion_bands.len() < MAX_TIMING_PAIRS * 8 {
+                self.motion_bands
+                    .extend(s.bands.iter().map(|b| BandReading {
+                        pair: index - 1,
+                        row: b.row,
+                        dx: b.dx,
+                        dy: b.dy,
+                        sigma: b.sigma,
+                    }));
+            }
+        }
         let before_last = std::mem::replace(&mut self.last_shift, shift.clone());
         self.prev_prev_shift = std::mem::replace(&mut self.prev_shift, before_last);
         if self.options.rotation.abs() == 90 || self.options.readout == Readout::Columns {
@@ -380,9 +401,17 @@ impl<'a> VideoProcessor<'a> {
                 self.unshear.face_by_columns(f);
             }
         }
-        let index = self.next_index;
         self.next_index += 1;
         let (tracks, face_velocities) = self.associate(index, &faces, height);
+        // Without faces the motion alone may tell the readout: refitted now and then.
+        if self.motion_model()
+            && self.options.readout_fraction.is_none()
+            && index >= 4
+            && index % if self.rho.is_none() { 5 } else { 30 } == 0
+        {
+            self.height = height;
+            self.refit();
+        }
         let face_k_motion = vec![None; faces.len()];
         let k_raw = combined_shear(&faces);
         let (update, due) = self.smoother.push(k_raw);
@@ -673,21 +702,64 @@ impl<'a> VideoProcessor<'a> {
         }
     }
 
-    /// Fits the readout over every reading: each reading's rate is its face's velocity at its
-    /// rows' time, from the band displacements around its frame when the face moves with them
-    /// (a camera's pan: the fitted curve's velocity at that instant, exact for a pan changing
-    /// speed within the frame), else its own displacement between frames (a subject moving by
-    /// itself). Both depend on `rho` through the rows' times, so the fit is repeated from the
-    /// last estimate (0.8 at first) until it settles.
+    /// Fits the readout over the clip so far: to the faces' readings (each reading's rate is
+    /// its face's velocity at its rows' time, from the band displacements around its frame when
+    /// the face moves with them, exact for a pan changing speed within the frame, else its own
+    /// displacement between frames: a subject moving by itself), and to the motion alone (see
+    /// [`readout_from_motion`]); the two combined.
     fn refit(&mut self) {
+        let params = self.options.calibration;
+        let faces = self.fit_faces();
+        // The motion alone tells the readout when the speed changes within the readouts; a
+        // steady pan leaves it wide open (then the faces decide).
+        let motion = readout_from_motion(&self.motion_bands, self.height)
+            .filter(|m| m.uncertainty.is_finite() && m.uncertainty < 0.5 * m.readout_fraction);
+        let fit = match (faces, motion) {
+            (f, None) => f,
+            (None, Some(m)) => Some(Calibration {
+                readout_fraction: m.readout_fraction,
+                uncertainty: m.uncertainty,
+                samples: 0,
+                tracks: 0,
+                frames: 0,
+                motion_pairs: m.pairs,
+            }),
+            (Some(f), Some(m)) => {
+                // Inverse-variance weighted, the uncertainty widened when the two disagree
+                // beyond their own uncertainties (Birge's ratio).
+                let (wf, wm) = (f.uncertainty.max(1e-6).powi(-2), m.uncertainty.powi(-2));
+                let rho = (wf * f.readout_fraction + wm * m.readout_fraction) / (wf + wm);
+                let chi2 = (f.readout_fraction - m.readout_fraction).powi(2)
+                    / (f.uncertainty.powi(2) + m.uncertainty.powi(2));
+                Some(Calibration {
+                    readout_fraction: rho,
+                    uncertainty: (wf + wm).sqrt().recip() * chi2.sqrt().max(1.0),
+                    motion_pairs: m.pairs,
+                    ..f
+                })
+            }
+        };
+        if self.options.readout_fraction.is_none() {
+            if let Some(c) = fit.filter(|c| params.is_known(c)) {
+                self.rho = Some(c.readout_fraction);
+            }
+        }
+        self.fit = fit;
+    }
+
+    /// The readout fitted to the faces' readings alone (see [`Self::refit`]). Their rates depend
+    /// on `rho`, so the fit is repeated from the last estimate (0.8 at first) until it settles.
+    fn fit_faces(&self) -> Option<Calibration> {
+        if self.readings.len() < 3 {
+            return None;
+        }
         let mut rho = self
             .fit
             .map_or(0.8, |c| c.readout_fraction)
             .clamp(0.05, 1.2);
-        let params = self.options.calibration;
         let mut fit = None;
         for _ in 0..3 {
-            let mut calibrator = ReadoutCalibrator::new(params);
+            let mut calibrator = ReadoutCalibrator::new(self.options.calibration);
             for r in &self.readings {
                 calibrator.add(ShearSample {
                     track: r.track,
@@ -698,11 +770,6 @@ impl<'a> VideoProcessor<'a> {
                 });
             }
             fit = calibrator.solve();
-            if self.options.readout_fraction.is_none() {
-                if let Some(c) = fit.filter(|c| params.is_known(c)) {
-                    self.rho = Some(c.readout_fraction);
-                }
-            }
             match fit {
                 Some(c) if c.readout_fraction > 0.05 && c.readout_fraction <= 1.2 => {
                     let settled = (c.readout_fraction - rho).abs() < 1e-3;
@@ -714,7 +781,7 @@ impl<'a> VideoProcessor<'a> {
                 _ => break,
             }
         }
-        self.fit = fit;
+        fit
     }
 
     /// A reading's image velocity at its rows' time for readout `rho` (see [`Self::refit`]).

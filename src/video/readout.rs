@@ -155,6 +155,16 @@ impl VelocityCurve {
         Self::fit_once(&kept, t0)
     }
 
+    /// [`Self::fit`] without dropping any sample: the same samples whatever they say (for
+    /// comparing fits under different readouts).
+    pub fn fit_all(samples: &[VelocitySample], t0: f64) -> Option<Self> {
+        let all: Vec<&VelocitySample> = samples.iter().collect();
+        if all.is_empty() {
+            return None;
+        }
+        Self::fit_once(&all, t0)
+    }
+
     fn fit_once(samples: &[&VelocitySample], t0: f64) -> Option<Self> {
         let (lo, hi) = samples
             .iter()
@@ -342,6 +352,9 @@ pub struct Calibration {
     pub tracks: usize,
     /// Distinct frames they came from.
     pub frames: usize,
+    /// Frame pairs whose motion told the readout on its own (the speed changing within the
+    /// readout; 0 when the motion said nothing and the faces alone found it).
+    pub motion_pairs: usize,
 }
 
 impl Calibration {
@@ -350,6 +363,10 @@ impl Calibration {
         self.readout_fraction / fps * 1000.0
     }
 }
+
+/// Frame pairs of changing motion that tell the readout without a face (see
+/// [`CalibrationParams::is_known`]).
+const MIN_MOTION_PAIRS: usize = 8;
 
 /// Settings of the readout's calibration from the faces.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -374,7 +391,7 @@ impl CalibrationParams {
     /// Whether a fit is good enough to correct by: enough readings, `rho` inside `(0, 1.2]` and
     /// known to [`Self::max_relative_uncertainty`].
     pub fn is_known(&self, c: &Calibration) -> bool {
-        c.samples >= self.min_samples
+        (c.samples >= self.min_samples || c.motion_pairs >= MIN_MOTION_PAIRS)
             && c.readout_fraction > 0.0
             && c.readout_fraction <= MAX_READOUT_FRACTION
             && c.uncertainty <= self.max_relative_uncertainty * c.readout_fraction
@@ -503,6 +520,7 @@ impl ReadoutCalibrator {
             samples: used,
             tracks: tracks.len(),
             frames: frames.len(),
+            motion_pairs: 0,
         })
     }
 
