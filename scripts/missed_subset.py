@@ -27,7 +27,8 @@ def main() -> int:
     for path in args.samples:
         with open(path, newline="") as f:
             for row in csv.DictReader(f):
-                if row["detected"] != "true":
+                # Faces the camera's frame cut (`cut`, missing in older runs) were not missed.
+                if row["detected"] != "true" and row.get("cut", "false") != "true":
                     missed.add(os.path.basename(row["image"]))
     if not missed:
         print("no missed faces in", args.samples, file=sys.stderr)

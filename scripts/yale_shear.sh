@@ -1,10 +1,12 @@
 #!/usr/bin/env bash
 # Shear-estimation check on the 15 Yale "normal" faces (no eye annotations, so only k is scored):
-# each face is sheared with `unshear distort --canvas expand` for k in {-0.4, -0.2, 0, 0.2, 0.4},
-# then `unshear estimate --json` runs on all of them and a summary per k is printed.
+# each face is sheared with `unshear distort --canvas crop` (the rectangle a camera delivers, every
+# row kept at this size: no empty corner whose slant gives k away) for k in {-0.4, -0.2, 0, 0.2,
+# 0.4}, then `unshear estimate --json` runs on all of them and a summary per k is printed.
 # Usage: scripts/yale_shear.sh [path/to/yale-faces/images]   (needs python3, no packages)
 # Environment: UNSHEAR (the binary, default target/release/unshear), UNSHEAR_ARGS (extra options
-# for `estimate`, e.g. "--filter-type mosse").
+# for `estimate`, e.g. "--filter-type mosse"), YALE_CANVAS (`distort --canvas`, default crop;
+# expand: the widened canvas, the paper's setting).
 set -euo pipefail
 images=${1:-../shared/data/yale-faces/images}
 bin=${UNSHEAR:-target/release/unshear}
@@ -13,7 +15,7 @@ trap 'rm -rf "$work"' EXIT
 for f in "$images"/subject*.normal*; do
   s=$(basename "$f" | sed 's/\..*//')
   for k in -0.4 -0.2 0 0.2 0.4; do
-    "$bin" distort "$f" --k "$k" --canvas expand -o "$work/${s}_k$k.png"
+    "$bin" distort "$f" --k "$k" --canvas "${YALE_CANVAS:-crop}" -o "$work/${s}_k$k.png"
   done
 done
 "$bin" estimate "$work" --json ${UNSHEAR_ARGS:-} | python3 -c '

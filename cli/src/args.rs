@@ -580,8 +580,23 @@ pub struct EvalShearArgs {
         allow_negative_numbers = true
     )]
     pub roll: f64,
+    /// What the pipeline is given of each sheared photo: `crop`, the rectangle a camera
+    /// delivers (only the columns every row covers; faces it cuts are counted apart, not as
+    /// missed); `expand`, a canvas widened so nothing is cut, whose empty corners slant by k
+    /// (the paper's setting).
+    #[arg(long, value_enum, value_name = "CANVAS", default_value_t = EvalCanvasArg::Crop)]
+    pub canvas: EvalCanvasArg,
     #[command(flatten)]
     pub model: ModelArgs,
+}
+
+/// `eval shear --canvas`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum EvalCanvasArg {
+    /// The rectangle a camera delivers: no empty pixel.
+    Crop,
+    /// Widened so nothing is cut, empty corners and all.
+    Expand,
 }
 
 /// `unshear eval nostrils`.

@@ -22,8 +22,8 @@ use anyhow::{bail, Context, Result};
 use clap::Parser;
 
 use args::{
-    Cli, Command, CorrectArgs, DistortArgs, EstimateArgs, EvalCommand, EvalFaces, EvalNostrilsArgs,
-    EvalRecognitionArgs, EvalShearArgs, EvalVideoArgs, TrainArgs,
+    Cli, Command, CorrectArgs, DistortArgs, EstimateArgs, EvalCanvasArg, EvalCommand, EvalFaces,
+    EvalNostrilsArgs, EvalRecognitionArgs, EvalShearArgs, EvalVideoArgs, TrainArgs,
 };
 use batch::{collect_inputs, run_ordered, shard, Collected, Input, IMAGE_EXTENSIONS};
 use models::load_models;
@@ -707,6 +707,10 @@ fn eval_shear(a: EvalShearArgs) -> Result<()> {
         also_annotated,
         face_free: a.face_free,
         roll_degrees: a.roll,
+        canvas: match a.canvas {
+            EvalCanvasArg::Crop => unshear::dev::eval::shear::EvalCanvas::Crop,
+            EvalCanvasArg::Expand => unshear::dev::eval::shear::EvalCanvas::Expand,
+        },
     };
     let bar = progress_bar((faces.len() * a.k.len()) as u64);
     let result = evaluate_shear_in_context(&unshear, &faces, &options, a.context, || bar.inc(1));

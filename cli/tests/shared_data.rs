@@ -79,16 +79,30 @@ fn caltech_slice_tracks_the_shear() {
         also_annotated: Vec::new(),
         face_free: false,
         roll_degrees: 0.0,
+        canvas: unshear::dev::eval::shear::EvalCanvas::Crop,
     };
     // Each image cropped to its faces' surroundings, as `unshear eval shear` does (whole photos
-    // of up to 2300 px took four minutes here).
+    // of up to 2300 px took four minutes here), in the frame a camera delivers.
     let result = evaluate_shear_in_context(&unshear, &faces, &options, DEFAULT_CONTEXT, || {});
+    // The faces in the frame at both shears (the frame at 0.3 cuts those near a photo's side,
+    // and finds those it leaves close to its side less often): the same faces at both.
+    let cut: Vec<(&std::path::Path, usize)> = result
+        .samples
+        .iter()
+        .filter(|s| s.cut)
+        .map(|s| (std::path::Path::new(&s.image), s.face))
+        .collect();
     let at = |k: f64| -> Vec<&unshear::dev::eval::ShearSample> {
-        result.samples.iter().filter(|s| s.true_k == k).collect()
+        result
+            .samples
+            .iter()
+            .filter(|s| s.true_k == k && !cut.contains(&(std::path::Path::new(&s.image), s.face)))
+            .collect()
     };
     let detected = |k: f64| at(k).iter().filter(|s| s.detected).count() as f64 / at(k).len() as f64;
     println!(
-        "first 60 faces: detected {:.3} / {:.3}, median {:.3} / {:.3} at k = 0 / 0.3",
+        "first 60 faces, {} in the frame at both shears: detected {:.3} / {:.3}, median {:.3} / {:.3} at k = 0 / 0.3",
+        at(0.0).len(),
         detected(0.0),
         detected(0.3),
         median_of(&at(0.0)),
@@ -98,15 +112,17 @@ fn caltech_slice_tracks_the_shear() {
         unshear::internals::median(at(k).iter().filter_map(|s| s.estimate).collect())
             .expect("estimates")
     };
-    // These 60 faces (printed above): all found at both shears, medians 0.012 and 0.312. The
-    // bounds leave room for a face or two and a few thousandths, not for a broken stage.
+    // These faces (printed above): 51 in the frame at both shears, all found at k = 0 and 48
+    // at 0.3 (the three missed are faces the frame at 0.3 leaves close to its side, found on a
+    // widened canvas), medians 0.005 and 0.304. The bounds leave room for a face or two and a
+    // few thousandths, not for a broken stage.
     assert!(
         detected(0.0) >= 0.95,
         "detection rate unsheared {}",
         detected(0.0)
     );
     assert!(
-        detected(0.3) >= 0.95,
+        detected(0.3) >= 0.9,
         "detection rate at 0.3 {}",
         detected(0.3)
     );

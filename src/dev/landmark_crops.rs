@@ -13,8 +13,10 @@
 //!   box predicts them and whose size varies by about 9% (`features::RIGHT_EYE_IN_BOX`,
 //!   `features::EYE_DISTANCE_PER_BOX_WIDTH`); later searches start from located eyes;
 //! * **shear**: half of the crops are cut from the photo sheared as a rolling shutter would
-//!   shear it (by [`crate::warp::apply_shear`], by a shear drawn uniformly from
-//!   `+-PHOTO_SHEAR` per image), half from the photo as it is; the crop then removes that shear
+//!   shear it (by a shear drawn uniformly from `+-PHOTO_SHEAR` per image, in the rectangle a
+//!   camera delivers: no empty corner whose slanted edge would give the shear away), half from
+//!   the photo as it is (all of a face's crops from the photo as it is when the sheared copy's
+//!   frame cuts one of its eyes away); the crop then removes that shear
 //!   less a residual, which the face shows in the crop: drawn uniformly from `+-WIDE_SHEAR`
 //!   for half of the crops (the first search, in a view up to about 0.3 from the face's
 //!   shear), with std [`NARROW_SHEAR`] for the others (later searches, in the view the
@@ -36,6 +38,7 @@ use std::io::Write;
 use rayon::prelude::*;
 
 use crate::dev::dataset::AnnotatedFace;
+use crate::dev::eval::shear::{camera_window, sheared_window};
 use crate::error::{Error, Result};
 use crate::geometry::{Point, Shear};
 use crate::imageio;
@@ -43,7 +46,7 @@ use crate::locate::network::{
     crop_shear, frame_around_eyes, CROP_EYE_DISTANCES, CROP_SIZE, EYES_ABOVE_CENTRE,
 };
 use crate::rng::SplitMix64;
-use crate::warp::{try_apply_shear, Canvas, Interpolation, Placement};
+use crate::warp::Placement;
 
 /// Std of the eyes' midpoint's offset from where the crop expects it, eye distances, each axis.
 pub const CENTRE_JITTER: f64 = 0.08;
@@ -208,14 +211,20 @@ impl Version {
         }
     }
 
-    /// `gray` sheared by `k` about its middle row on a canvas that keeps every pixel.
+    /// `gray` sheared by `k` about its middle row, as a rolling-shutter camera delivers it:
+    /// every row, and only the columns every row covers (`eval::shear::camera_window`). A
+    /// canvas widened to keep every pixel would have empty corners whose edges slant by `k`,
+    /// and a crop reaching one would show its label's shear outright (the crop removes the
+    /// photo's shear less the residual, so the edge slants by the residual in the crop); the
+    /// camera's frame has upright edges, as a photo at run time has.
     fn sheared(gray: &image::GrayImage, k: f64) -> Option<Self> {
-        let shear = Shear::about_middle(k, gray.height());
-        let (img, placement) = try_apply_shear(
+        let (shear, placement, w, h) = camera_window(&[], gray.width(), gray.height(), k, 0.0)?;
+        let img = sheared_window(
             &image::DynamicImage::ImageLuma8(gray.clone()),
             shear,
-            Interpolation::Linear,
-            Canvas::Expand,
+            placement,
+            w,
+            h,
         )
         .ok()?;
         Some(Self {
@@ -228,6 +237,19 @@ impl Version {
 
     fn point(&self, p: Point) -> Point {
         self.placement.from_frame(self.shear.apply(p))
+    }
+
+    /// Whether both of `face`'s eyes lie in this version's frame (a sheared copy's frame can
+    /// cut a face near the photo's side away).
+    fn shows(&self, face: &AnnotatedFace) -> bool {
+        let (w, h) = (
+            f64::from(self.gray.width()) - 1.0,
+            f64::from(self.gray.height()) - 1.0,
+        );
+        [face.right_eye, face.left_eye].iter().all(|&p| {
+            let p = self.point(p);
+            p.x >= 0.0 && p.y >= 0.0 && p.x <= w && p.y <= h
+        })
     }
 }
 
@@ -242,8 +264,13 @@ fn face_samples(
     let distance = face.eye_distance();
     let head_roll = (face.left_eye.y - face.right_eye.y).atan2(face.left_eye.x - face.right_eye.x);
     let mut out = Vec::with_capacity(options.per_face);
+    // The versions whose frame holds the face (the photo as it is always does).
+    let versions: Vec<&Version> = versions.iter().filter(|v| v.shows(face)).collect();
+    if versions.is_empty() {
+        return out;
+    }
     for _ in 0..options.per_face {
-        let version = &versions[(rng.next_f64() * versions.len() as f64) as usize % versions.len()];
+        let version = versions[(rng.next_f64() * versions.len() as f64) as usize % versions.len()];
         let (re, le) = (version.point(face.right_eye), version.point(face.left_eye));
         let midpoint = re.midpoint(le);
         let residual = if rng.next_f64() < 0.5 {
@@ -569,6 +596,64 @@ mod tests {
             mean.abs() < 0.03 && (var - 1.0).abs() < 0.05,
             "{mean} {var}"
         );
+    }
+
+    /// The sheared copy is the rectangle a camera delivers: every pixel from the photo (none
+    /// of the widened canvas's empty corners, whose edges slant by the shear), `|k| (H - 1)`
+    /// narrower, every row kept.
+    #[test]
+    fn the_sheared_copy_has_no_empty_corner() {
+        let gray = image::GrayImage::from_fn(200, 100, |x, y| image::Luma([(x + y) as u8 | 1]));
+        for k in [0.5, -0.3, 0.137] {
+            let v = Version::sheared(&gray, k).expect("shear");
+            assert!(v.gray.pixels().all(|p| p.0[0] > 0), "k = {k}");
+            let narrower = 200.0 - f64::from(v.gray.width());
+            assert!(
+                narrower >= k.abs() * 99.0 && narrower <= k.abs() * 99.0 + 2.0,
+                "k = {k}: {narrower}"
+            );
+            assert_eq!(v.gray.height(), 100);
+            // A point on the middle row keeps its place up to the cut on the left.
+            let p = v.point(Point::new(100.0, 50.0));
+            assert!((p.x + v.placement.offset_x - 100.0).abs() < 1e-9, "k = {k}");
+        }
+    }
+
+    /// A face the sheared copy's frame cuts is cut from the photo as it is only.
+    #[test]
+    fn a_face_the_sheared_frame_cuts_comes_from_the_photo_as_it_is() {
+        let bright = image::GrayImage::from_pixel(200, 200, image::Luma([200]));
+        let dark = image::GrayImage::from_pixel(200, 200, image::Luma([50]));
+        let sheared = Version {
+            gray: Version::sheared(&bright, 0.5).expect("shear").gray,
+            ..Version::sheared(&dark, 0.5).expect("shear")
+        };
+        // Shifted by -50 on row 0 and +49.5 on row 199: the frame keeps columns 50..=149.
+        let face = |x: f64| AnnotatedFace {
+            image: "synthetic".into(),
+            right_eye: Point::new(x, 100.0),
+            left_eye: Point::new(x + 20.0, 100.0),
+            nose: None,
+            mouth: None,
+        };
+        let versions = [Version::unsheared(dark), sheared];
+        let options = ExportOptions {
+            size: 48,
+            per_face: 16,
+            ..ExportOptions::default()
+        };
+        let levels = |x: f64| -> Vec<u8> {
+            face_samples(&versions, &face(x), 0, &options)
+                .iter()
+                .flat_map(|s| s.pixels.clone())
+                .collect()
+        };
+        // At the photo's side: the dark photo only. In the middle: both.
+        let side = levels(20.0);
+        assert_eq!(side.len(), 16 * 48 * 48);
+        assert!(side.iter().all(|&v| v == 50));
+        assert!(versions[1].shows(&face(90.0)) && !versions[1].shows(&face(20.0)));
+        assert!(levels(90.0).contains(&200));
     }
 
     #[test]

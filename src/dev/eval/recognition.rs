@@ -7,7 +7,8 @@
 //! location on the sheared image) and the corrected probes (the tool estimates `k` on the sheared
 //! image, de-shears the whole image, then detects and normalises again). A probe where no face
 //! is found (or, for "corrected", no shear could be estimated) counts as a miss. Shears use the
-//! documented convention (bilinear, pivot at the middle row, canvas expanded).
+//! documented convention (bilinear, pivot at the middle row), and each sheared probe is cut to
+//! the rectangle a camera delivers (`shear::camera_window`: no empty corner).
 //!
 //! **Recogniser, after the paper's "G96"** (the paper does not spell it out; this is our
 //! reading, documented so it can be changed):
@@ -33,13 +34,14 @@ use image::{DynamicImage, GrayImage};
 use rayon::prelude::*;
 use serde::Serialize;
 
+use super::shear::{camera_window, sheared_window};
 use super::{fmt3, pct};
 use crate::dev::dataset::{gallery_probe_split, LabelledImage};
-use crate::geometry::{Point, Shear};
+use crate::geometry::Point;
 use crate::imageio;
 use crate::pipeline::{CorrectOptions, ImageReport, Region, Unshear};
 use crate::stats::median;
-use crate::warp::{try_apply_shear, Canvas, Interpolation};
+use crate::warp::{Canvas, Interpolation};
 
 /// Side of the normalised face crop, pixels.
 pub const CROP: usize = 64;
@@ -376,9 +378,10 @@ fn run_probe(unshear: &Unshear, img: &DynamicImage, options: &RecognitionOptions
         .shears
         .iter()
         .map(|&k| {
-            let shear = Shear::about_middle(k, img.height());
-            let Ok((sheared, _)) =
-                try_apply_shear(img, shear, Interpolation::Linear, Canvas::Expand)
+            // The rectangle a camera delivers of the sheared probe: no empty corner whose
+            // slanted edge would show the shear.
+            let Some(sheared) = camera_window(&[], img.width(), img.height(), k, 0.0)
+                .and_then(|(shear, at, w, h)| sheared_window(img, shear, at, w, h).ok())
             else {
                 return (None, None, None);
             };

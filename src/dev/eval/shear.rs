@@ -2,19 +2,30 @@
 //! the paper reports (Table I's median estimates), with detection included as a user runs it.
 //!
 //! For each image and each shear `k`: the image is sheared in memory with the documented
-//! convention (bilinear, pivot at the middle row, canvas expanded so nothing is cut), the full
-//! pipeline runs on it, and for each annotated face we record whether a detected box contains
-//! both (sheared) true eyes, the estimate of that face, and the eye-localisation error.
+//! convention (bilinear, pivot at the middle row of what is sheared), the full pipeline runs on
+//! the frame a camera would deliver of it, and for each annotated face we record whether a
+//! detected box contains both (sheared) true eyes, the estimate of that face, and the
+//! eye-localisation error.
 //!
-//! **Speed-up (context crop).** Caltech images are up to 2300 px wide and the expanded canvas of
-//! a strong shear makes them wider still; most of the run time went into scanning background.
-//! With [`evaluate_shear_in_context`] and `context > 0` each image is first cropped to the union of the
-//! annotated faces' surroundings (a square `context` times the nominal face box — two eye
-//! distances wide, centred a little below the eye midpoint — on each face, clipped to the
-//! image) and only then sheared. `k` is unchanged by the crop (the pivot moves with it, which
-//! shifts rows by a constant and is irrelevant to the estimate); the detector sees the face with
-//! the same surroundings up to a margin, so detection rates stay close (compare with
-//! `--context 0`, which shears the whole image as before).
+//! **The frame ([`EvalCanvas`]).** A rolling-shutter camera delivers a rectangle, every pixel of
+//! it filled: the default, [`EvalCanvas::Crop`], hands the pipeline only the columns that every
+//! row of the frame covers (about `|k|` times the frame's height narrower than the photo), never
+//! a canvas with empty corners, whose edges slant by exactly `k` and so would give the shear
+//! away. A face whose eye falls outside that frame or within [`FRAME_MARGIN`] eye distances of
+//! its edge is *cut*: left out of every count (not scored as missed) and counted apart.
+//! [`EvalCanvas::Expand`] shears onto a canvas widened so nothing is cut, empty corners and all
+//! (the paper's setting).
+//!
+//! **Speed-up (context crop).** Caltech images are up to 2300 px wide; most of the run time went
+//! into scanning background. With [`evaluate_shear_in_context`] and `context > 0` the pipeline
+//! sees only the union of the annotated faces' surroundings (a square `context` times the
+//! nominal face box — two eye distances wide, centred a little below the eye midpoint — on each
+//! face). With [`EvalCanvas::Crop`] that square is taken around the sheared faces, within the
+//! columns the sheared photo covers in its rows ([`camera_window`]), so a face keeps the
+//! surroundings it has at `k = 0` wherever the photo has them. With [`EvalCanvas::Expand`] the
+//! image is cropped to it (clipped to the image) and only then sheared. `k` is unchanged by
+//! either (the pivot moves with the crop, which shifts rows by a constant and is irrelevant to
+//! the estimate); compare with `--context 0`, which gives the whole photo.
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -32,10 +43,29 @@ use crate::pipeline::confidence::{box_outside_share, face_layout};
 use crate::pipeline::{FaceReport, Unshear};
 use crate::stats::median;
 use crate::warp::rotate::{rotate_gray, Rotation};
-use crate::warp::{try_apply_shear, Canvas, Interpolation};
+use crate::warp::{try_apply_shear, Canvas, Interpolation, Placement};
 
 /// Default context crop: 3 nominal face boxes around each annotated face.
 pub const DEFAULT_CONTEXT: f64 = 3.0;
+
+/// How near the frame's edge, in eye distances, an annotated eye may lie for its face to be
+/// scored ([`ShearSample::cut`] otherwise). Every one of the 928 measured development faces has
+/// both eyes at least 0.38 eye distances inside its photo, so at `k = 0` none is cut; an eye a
+/// quarter eye distance from the edge leaves the face box (half an eye distance beyond each eye)
+/// half cut away.
+pub const FRAME_MARGIN: f64 = 0.25;
+
+/// What `eval shear` hands the pipeline of each sheared photo.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum EvalCanvas {
+    /// The rectangle a rolling-shutter camera delivers: of the frame's rows, only the columns
+    /// every one of them covers, no empty pixel ([`camera_window`]).
+    #[default]
+    Crop,
+    /// The sheared photo on a canvas widened so nothing is cut (the paper's setting): its empty
+    /// corners' edges slant by exactly `k`, a cue no real photo has.
+    Expand,
+}
 
 /// Options for [`evaluate_shear`].
 #[derive(Debug, Clone, PartialEq)]
@@ -53,6 +83,8 @@ pub struct ShearEvalOptions {
     /// Turn each (cropped) photo by this many degrees before shearing it: the heads rolled,
     /// then read out by a rolling shutter (0: as they are).
     pub roll_degrees: f64,
+    /// The frame the pipeline is given.
+    pub canvas: EvalCanvas,
 }
 
 /// One photo with its annotated faces painted over ([`face_free`]), and what the pipeline
@@ -220,6 +252,10 @@ pub struct ShearSample {
     pub true_k: f64,
     /// Eye distance in the image, pixels.
     pub eye_distance: f64,
+    /// The frame cut the face: an eye lies outside it or within [`FRAME_MARGIN`] eye distances
+    /// of its edge. Such a face is not scored (every other field is empty) and not counted as
+    /// missed.
+    pub cut: bool,
     /// A detected box contained both true eyes.
     pub detected: bool,
     /// Further reported faces whose boxes also contain both true eyes: the same face reported
@@ -337,8 +373,17 @@ pub fn evaluate_shear_in_context(
             } else {
                 None
             };
-            let (img, origin) = load_cropped(path, annotated, options, context)?;
-            let (img, rotation) = if options.roll_degrees == 0.0 {
+            let rolled = options.roll_degrees != 0.0;
+            // The camera's frame is taken around the sheared faces in the whole photo (their
+            // surroundings as at k = 0 wherever the photo has them); a turned photo is turned
+            // after its context crop, as with the widened canvas, and then framed whole.
+            let window_context = match options.canvas {
+                EvalCanvas::Crop if !rolled => context,
+                _ => 0.0,
+            };
+            let crop_first = if window_context > 0.0 { 0.0 } else { context };
+            let (img, origin) = load_cropped(path, annotated, options, crop_first)?;
+            let (img, rotation) = if !rolled {
                 (img, None)
             } else {
                 let (turned, rotation) =
@@ -351,6 +396,8 @@ pub fn evaluate_shear_in_context(
                 img: &img,
                 origin,
                 rotation,
+                canvas: options.canvas,
+                context: window_context,
             };
             let mut out: Found = (Vec::new(), Vec::new(), face_free);
             for &k in &options.shears {
@@ -409,13 +456,124 @@ fn load_cropped(
     )
 }
 
-/// One photo as the eval shears it: cropped (its top-left pixel at `origin` in the file) and
-/// perhaps turned (`rotation`, from the crop to `img`).
+/// One photo as the eval shears it: perhaps cropped (its top-left pixel at `origin` in the file)
+/// and turned (`rotation`, from the crop to `img`), then framed by `canvas` (with
+/// [`EvalCanvas::Crop`], `context` nominal face boxes around the faces; 0: the whole frame).
 struct Photo<'a> {
     path: &'a Path,
     img: &'a image::DynamicImage,
     origin: Point,
     rotation: Option<Rotation>,
+    canvas: EvalCanvas,
+    context: f64,
+}
+
+/// Where an eye may lie in a `width` x `height` frame for its face, `eye_distance` wide, to be
+/// scored: at least [`FRAME_MARGIN`] eye distances inside each edge.
+fn in_frame(p: Point, eye_distance: f64, width: u32, height: u32) -> bool {
+    let m = FRAME_MARGIN * eye_distance;
+    p.x >= m && p.y >= m && p.x <= f64::from(width) - 1.0 - m && p.y <= f64::from(height) - 1.0 - m
+}
+
+/// The frame a rolling-shutter camera delivers of a `width` x `height` photo sheared by `k`
+/// around faces (each its eyes' midpoint and eye distance, in the photo's pixels): the shear
+/// (pivot at the frame's middle row), where the frame lies in the sheared photo, and its width
+/// and height; `None` if no column is covered.
+///
+/// The rows are those of `context` nominal face boxes around the faces (as [`context_crop`]
+/// takes them; `context <= 0` or no faces: every row). The columns are those of the same boxes
+/// around the sheared faces, cut to the columns every one of these rows covers entirely
+/// (`|k|` times the rows' span narrower than the photo): no pixel of the frame lies outside the
+/// photo.
+pub fn camera_window(
+    faces: &[(Point, f64)],
+    width: u32,
+    height: u32,
+    k: f64,
+    context: f64,
+) -> Option<(Shear, Placement, u32, u32)> {
+    if width == 0 || height == 0 || !k.is_finite() {
+        return None;
+    }
+    let (w, h) = (f64::from(width), f64::from(height));
+    let rows = context_bounds(faces, context, |p| p).map_or((0.0, h), |[_, y0, _, y1]| {
+        (y0.floor().clamp(0.0, h), y1.ceil().clamp(0.0, h))
+    });
+    if rows.1 <= rows.0 {
+        return None;
+    }
+    let shear = Shear::new(k, rows.0 + (rows.1 - rows.0) / 2.0);
+    // The warp treats shifts within 1e-9 of a whole number as that number.
+    let snap = |v: f64| {
+        if (v - v.round()).abs() < 1e-9 {
+            v.round()
+        } else {
+            v
+        }
+    };
+    let (a, b) = (
+        snap(shear.row_shift(rows.0)),
+        snap(shear.row_shift(rows.1 - 1.0)),
+    );
+    let (covered_x0, covered_x1) = (a.max(b).ceil(), (a.min(b) + w - 1.0).floor() + 1.0);
+    let cols = context_bounds(faces, context, |p| shear.apply(p))
+        .map_or((covered_x0, covered_x1), |[x0, _, x1, _]| {
+            (x0.floor().max(covered_x0), x1.ceil().min(covered_x1))
+        });
+    if cols.1 <= cols.0 {
+        return None;
+    }
+    Some((
+        shear,
+        Placement {
+            offset_x: cols.0,
+            offset_y: rows.0,
+        },
+        (cols.1 - cols.0) as u32,
+        (rows.1 - rows.0) as u32,
+    ))
+}
+
+/// The `width` x `height` window at `placement` of `img` sheared by `shear` (bilinear), every
+/// pixel as [`try_apply_shear`] gives it on the whole image; the window must lie where every
+/// row is covered ([`camera_window`]). Only the rows and columns the window needs are sheared.
+pub(crate) fn sheared_window(
+    img: &image::DynamicImage,
+    shear: Shear,
+    placement: Placement,
+    width: u32,
+    height: u32,
+) -> Result<image::DynamicImage> {
+    let (x0, y0) = (placement.offset_x, placement.offset_y);
+    let (a, b) = (
+        shear.row_shift(y0),
+        shear.row_shift(y0 + f64::from(height) - 1.0),
+    );
+    // The source columns of the window's rows, and one more each side for the bilinear taps.
+    let first = ((x0 - a.max(b)).floor() - 1.0).max(0.0);
+    let last = ((x0 + f64::from(width) - 1.0 - a.min(b)).ceil() + 2.0).min(f64::from(img.width()));
+    let bad = || {
+        Error::InvalidArgument(format!(
+            "window {width}x{height} at ({x0}, {y0}) is not inside the sheared {}x{} image",
+            img.width(),
+            img.height()
+        ))
+    };
+    if last <= first || y0 < 0.0 || y0 + f64::from(height) > f64::from(img.height()) {
+        return Err(bad());
+    }
+    let part = img.crop_imm(first as u32, y0 as u32, (last - first) as u32, height);
+    let (sheared, at) = try_apply_shear(
+        &part,
+        Shear::new(shear.k, shear.pivot_y - y0),
+        Interpolation::Linear,
+        Canvas::Expand,
+    )?;
+    let x = x0 - first - at.offset_x;
+    if x < 0.0 || x + f64::from(width) > f64::from(sheared.width()) {
+        return Err(bad());
+    }
+    Ok(sheared.crop_imm(x as u32, 0, width, height))
 }
 
 fn run_one(
@@ -430,19 +588,47 @@ fn run_one(
         img,
         origin,
         rotation,
+        canvas,
+        context,
     } = *photo;
-    let shear = Shear::about_middle(k, img.height());
-    let (sheared, placement) = try_apply_shear(img, shear, Interpolation::Linear, Canvas::Expand)
-        .map_err(|e| format!("{}: {e}", path.display()))?;
+    let failed = |e: Error| format!("{}: {e}", path.display());
+    let in_view = |p: Point| {
+        let p = Point::new(p.x - origin.x, p.y - origin.y);
+        rotation.map_or(p, |r| r.to_view(p))
+    };
+    let (shear, sheared, placement) = match canvas {
+        EvalCanvas::Expand => {
+            let shear = Shear::about_middle(k, img.height());
+            let (sheared, placement) =
+                try_apply_shear(img, shear, Interpolation::Linear, Canvas::Expand)
+                    .map_err(failed)?;
+            (shear, sheared, placement)
+        }
+        EvalCanvas::Crop => {
+            let faces: Vec<(Point, f64)> = annotated
+                .iter()
+                .map(|f| {
+                    let mid = in_view(f.right_eye).midpoint(in_view(f.left_eye));
+                    (mid, f.eye_distance())
+                })
+                .collect();
+            let (shear, placement, w, h) =
+                camera_window(&faces, img.width(), img.height(), k, context).ok_or_else(|| {
+                    format!(
+                        "{}: no column of the photo stays in the frame at k = {k}",
+                        path.display()
+                    )
+                })?;
+            let sheared = sheared_window(img, shear, placement, w, h).map_err(failed)?;
+            (shear, sheared, placement)
+        }
+    };
     let start = Instant::now();
     // Boxes with their estimates, so a face that is detected but yields no estimate still counts
     // as detected.
     let found = unshear.detect_and_estimate(&Unshear::gray(&sheared));
     let millis = start.elapsed().as_secs_f64() * 1e3;
-    let moved = |p: Point| {
-        let p = Point::new(p.x - origin.x, p.y - origin.y);
-        placement.from_frame(shear.apply(rotation.map_or(p, |r| r.to_view(p))))
-    };
+    let moved = |p: Point| placement.from_frame(shear.apply(in_view(p)));
     let unmatched = found
         .iter()
         .filter_map(|found| {
@@ -467,13 +653,25 @@ fn run_one(
         .enumerate()
         .map(|(i, f)| {
             let (re, le) = (moved(f.right_eye), moved(f.left_eye));
+            let ed = f.eye_distance();
+            let (w, h) = (sheared.width(), sheared.height());
+            if !(in_frame(re, ed, w, h) && in_frame(le, ed, w, h)) {
+                return ShearSample {
+                    image: path.display().to_string(),
+                    face: i,
+                    true_k: k,
+                    eye_distance: ed,
+                    cut: true,
+                    millis,
+                    ..Default::default()
+                };
+            }
             let mut hits = found
                 .iter()
                 .filter(|f| f.face_box.contains(re) && f.face_box.contains(le));
             let hit = hits.next();
             let duplicates = hits.filter(|f| f.report.is_some()).count();
             let report = hit.and_then(|f| f.report.as_ref());
-            let ed = f.eye_distance();
             let oracle = f.nose.and_then(|n| {
                 let n = moved(n);
                 let mid = re.midpoint(le);
@@ -485,6 +683,7 @@ fn run_one(
                 face: i,
                 true_k: k,
                 eye_distance: ed,
+                cut: false,
                 detected: hit.is_some(),
                 duplicates,
                 estimate: report.and_then(|d| d.k),
@@ -540,19 +739,11 @@ pub fn context_crop(
     height: u32,
     context: f64,
 ) -> Option<(u32, u32, u32, u32)> {
-    if context.is_nan() || context <= 0.0 || faces.is_empty() {
-        return None;
-    }
-    let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
-    for f in faces {
-        let d = f.eye_distance();
-        let c = f.right_eye.midpoint(f.left_eye);
-        let half = context * d; // half of `context` boxes of side 2 d
-        x0 = x0.min(c.x - half);
-        x1 = x1.max(c.x + half);
-        y0 = y0.min(c.y + 0.4 * d - half);
-        y1 = y1.max(c.y + 0.4 * d + half);
-    }
+    let faces: Vec<(Point, f64)> = faces
+        .iter()
+        .map(|f| (f.right_eye.midpoint(f.left_eye), f.eye_distance()))
+        .collect();
+    let [x0, y0, x1, y1] = context_bounds(&faces, context, |p| p)?;
     let cx0 = x0.floor().max(0.0) as u32;
     let cy0 = y0.floor().max(0.0) as u32;
     let cx1 = (x1.ceil().max(0.0) as u32).min(width);
@@ -563,16 +754,43 @@ pub fn context_crop(
     Some((cx0, cy0, cx1 - cx0, cy1 - cy0))
 }
 
+/// The bounds `[x0, y0, x1, y1]` of `context` nominal face boxes around each of `faces` (eyes'
+/// midpoint and eye distance), the midpoints moved by `at`, unclipped; `None` for
+/// `context <= 0` or no faces.
+fn context_bounds(
+    faces: &[(Point, f64)],
+    context: f64,
+    at: impl Fn(Point) -> Point,
+) -> Option<[f64; 4]> {
+    if context.is_nan() || context <= 0.0 || faces.is_empty() {
+        return None;
+    }
+    let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
+    for &(mid, d) in faces {
+        let c = at(mid);
+        let half = context * d; // half of `context` boxes of side 2 d
+        x0 = x0.min(c.x - half);
+        x1 = x1.max(c.x + half);
+        y0 = y0.min(c.y + 0.4 * d - half);
+        y1 = y1.max(c.y + 0.4 * d + half);
+    }
+    Some([x0, y0, x1, y1])
+}
+
 impl ShearEvalResult {
-    /// The samples of one shear.
+    /// The scored samples of one shear (the faces the frame cut left out).
     fn at(&self, k: f64) -> Vec<&ShearSample> {
-        self.samples.iter().filter(|s| s.true_k == k).collect()
+        self.samples
+            .iter()
+            .filter(|s| s.true_k == k && !s.cut)
+            .collect()
     }
 
     /// The summary as Markdown tables.
     pub fn markdown(&self) -> String {
         let mut s = String::new();
-        let faces = self.at(self.shears.first().copied().unwrap_or(0.0)).len();
+        let first = self.shears.first().copied().unwrap_or(0.0);
+        let faces = self.samples.iter().filter(|s| s.true_k == first).count();
         let _ = writeln!(
             s,
             "Faces: {faces}; unreadable images: {}\n",
@@ -620,6 +838,7 @@ impl ShearEvalResult {
                 fmt3(median(oracle)),
             );
         }
+        self.cut_tables(&mut s);
         let _ = writeln!(
             s,
             "\nEye localisation per shear (worst eye / eye distance; share of all faces at that k, misses count as failures):\n\n| true k | median eye error | <= 0.05 | <= 0.10 | <= 0.25 |\n|---:|---:|---:|---:|---:|"
@@ -738,7 +957,7 @@ impl ShearEvalResult {
             );
         }
         let located: Vec<f64> = self.samples.iter().filter_map(|s| s.eye_error).collect();
-        let all = self.samples.len();
+        let all = self.samples.iter().filter(|s| !s.cut).count();
         let _ = writeln!(
             s,
             "\nEye localisation over all shears (worst eye, fraction of the eye distance; of all {all} samples): <= 0.05: {:.1}%, <= 0.10: {:.1}%, <= 0.25: {:.1}%",
@@ -755,6 +974,65 @@ impl ShearEvalResult {
             );
         }
         s
+    }
+
+    /// The faces the frame cut per shear, and how the faces in the frame at every shear fared
+    /// (the same faces at every shear, so the rows compare); nothing when no face was cut.
+    fn cut_tables(&self, s: &mut String) {
+        let cut = |k: f64| {
+            self.samples
+                .iter()
+                .filter(|s| s.true_k == k && s.cut)
+                .count()
+        };
+        if self.shears.iter().all(|&k| cut(k) == 0) {
+            return;
+        }
+        let _ = writeln!(
+            s,
+            "\nFaces the frame cut (an eye outside the frame the camera delivers, or within {FRAME_MARGIN} eye distances of its edge): left out of every table here, not counted as missed:\n\n| true k | in the frame | cut |\n|---:|---:|---:|"
+        );
+        for &k in &self.shears {
+            let _ = writeln!(s, "| {k:+.2} | {} | {} |", self.at(k).len(), cut(k));
+        }
+        let mut everywhere: Vec<(&str, usize)> = self
+            .samples
+            .iter()
+            .filter(|s| s.cut)
+            .map(|s| (s.image.as_str(), s.face))
+            .collect();
+        everywhere.sort_unstable();
+        everywhere.dedup();
+        let same = |k: f64| -> Vec<&ShearSample> {
+            self.at(k)
+                .into_iter()
+                .filter(|s| {
+                    everywhere
+                        .binary_search(&(s.image.as_str(), s.face))
+                        .is_err()
+                })
+                .collect()
+        };
+        let n = same(self.shears[0]).len();
+        let _ = writeln!(
+            s,
+            "\nThe {n} faces in the frame at every shear (*wrong*: accepted estimates more than 0.10 off):\n\n| true k | detected | within 0.05 | wrong |\n|---:|---:|---:|---:|"
+        );
+        for &k in &self.shears {
+            let at = same(k);
+            let err = |e: &f64| (e - k).abs();
+            let _ = writeln!(
+                s,
+                "| {k:+.2} | {} | {} | {} |",
+                at.iter().filter(|s| s.detected).count(),
+                at.iter()
+                    .filter(|s| s.estimate.as_ref().map(err).is_some_and(|e| e <= 0.05))
+                    .count(),
+                at.iter()
+                    .filter(|s| s.estimate.as_ref().map(err).is_some_and(|e| e > 0.10))
+                    .count(),
+            );
+        }
     }
 
     /// Every sample as a JSON array.
@@ -864,13 +1142,13 @@ impl ShearEvalResult {
     /// Every sample as CSV.
     pub fn csv(&self) -> String {
         let mut s = String::from(
-            "image,face,true_k,eye_distance,detected,estimate,eye_error,oracle,millis,measured,confidence,refused,gross_error\n",
+            "image,face,true_k,eye_distance,detected,estimate,eye_error,oracle,millis,measured,confidence,refused,gross_error,cut\n",
         );
         let opt = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.5}"));
         for x in &self.samples {
             let _ = writeln!(
                 s,
-                "{},{},{},{:.2},{},{},{},{},{:.2},{},{},{},{}",
+                "{},{},{},{:.2},{},{},{},{},{:.2},{},{},{},{},{}",
                 x.image,
                 x.face,
                 x.true_k,
@@ -884,7 +1162,8 @@ impl ShearEvalResult {
                 opt(x.confidence),
                 x.refused.as_deref().unwrap_or(""),
                 x.estimate
-                    .is_some_and(|e| (e - x.true_k).abs() > GROSS_ERROR)
+                    .is_some_and(|e| (e - x.true_k).abs() > GROSS_ERROR),
+                x.cut
             );
         }
         s
@@ -1083,6 +1362,141 @@ mod protocol_tests {
             assert_eq!(json["spread"][2], 0.3);
             assert!(json["k_points"].is_null());
         }
+    }
+
+    /// A 100 x 50 photo sheared by 0.4 about its middle row (25) shifts its first row by -10 and
+    /// its last by +9.6: the camera's frame keeps the frame columns 10..=89 of every row.
+    #[test]
+    fn camera_window_keeps_the_columns_every_row_covers() {
+        let (shear, at, w, h) = camera_window(&[], 100, 50, 0.4, 3.0).expect("a window");
+        assert_eq!((shear.k, shear.pivot_y), (0.4, 25.0));
+        assert_eq!((at.offset_x, at.offset_y, w, h), (10.0, 0.0, 80, 50));
+        // An eye on the pivot row keeps its column; 20 rows below it moves 8 px right.
+        let moved = |p: Point| at.from_frame(shear.apply(p));
+        assert_eq!(moved(Point::new(50.0, 25.0)), Point::new(40.0, 25.0));
+        assert_eq!(moved(Point::new(50.0, 45.0)), Point::new(48.0, 45.0));
+        // Negative k: the same width, the other way round.
+        let (_, at, w, _) = camera_window(&[], 100, 50, -0.4, 0.0).expect("a window");
+        assert_eq!((at.offset_x, w), (10.0, 80));
+        // Unsheared, the whole photo; sheared past its width, nothing.
+        let (_, at, w, h) = camera_window(&[], 100, 50, 0.0, 0.0).expect("a window");
+        assert_eq!((at.offset_x, at.offset_y, w, h), (0.0, 0.0, 100, 50));
+        assert!(camera_window(&[], 100, 50, 2.1, 0.0).is_none());
+    }
+
+    /// Around one face the window takes the rows of the context boxes (as `context_crop`) and
+    /// their columns around the sheared face, within the columns those rows cover.
+    #[test]
+    fn camera_window_frames_the_sheared_face() {
+        // Eyes 10 px apart, midpoint (105, 100): boxes rows 74..134, columns 75..135 at k = 0.
+        let faces = [(Point::new(105.0, 100.0), 10.0)];
+        let (shear, at, w, h) = camera_window(&faces, 1000, 1000, 0.0, 3.0).expect("window");
+        assert_eq!((at.offset_x, at.offset_y, w, h), (75.0, 74.0, 60, 60));
+        assert_eq!(shear.pivot_y, 104.0);
+        // k = 0.5 about row 104 moves the midpoint 2 px left; rows 74..134 cover every column
+        // from 15 (row 74 shifts by -15) to 984 (row 133 by +14.5): the boxes fit.
+        let (shear, at, w, h) = camera_window(&faces, 1000, 1000, 0.5, 3.0).expect("window");
+        assert_eq!((at.offset_x, at.offset_y, w, h), (73.0, 74.0, 60, 60));
+        assert_eq!(
+            shear.apply(Point::new(105.0, 100.0)),
+            Point::new(103.0, 100.0)
+        );
+        // Near the photo's left edge the covered columns cut the boxes: from 15 on.
+        let faces = [(Point::new(20.0, 100.0), 10.0)];
+        let (_, at, w, _) = camera_window(&faces, 1000, 1000, 0.5, 3.0).expect("window");
+        assert_eq!((at.offset_x, w), (15.0, 33));
+    }
+
+    /// The window is pixel for pixel the same part of the whole photo sheared on a widened
+    /// canvas, and holds no empty (fill) pixel.
+    #[test]
+    fn sheared_window_matches_the_whole_sheared_photo() {
+        let img = image::DynamicImage::ImageRgb8(image::RgbImage::from_fn(97, 61, |x, y| {
+            image::Rgb([
+                (x * 7 + y * 3) as u8 | 1,
+                (x * y % 251) as u8 | 1,
+                (x + 5 * y) as u8 | 1,
+            ])
+        }));
+        let faces = [(Point::new(40.0, 30.0), 8.0)];
+        for k in [0.0, 0.14, -0.33, 0.4, 0.5] {
+            for context in [0.0, 1.5, 3.0] {
+                let (shear, at, w, h) = camera_window(&faces, 97, 61, k, context).expect("window");
+                let part = sheared_window(&img, shear, at, w, h).expect("window pixels");
+                let (whole, whole_at) =
+                    try_apply_shear(&img, shear, Interpolation::Linear, Canvas::Expand)
+                        .expect("whole");
+                let x = (at.offset_x - whole_at.offset_x) as u32;
+                let y = at.offset_y as u32;
+                let expected = whole.crop_imm(x, y, w, h).to_rgb8();
+                let got = part.to_rgb8();
+                assert_eq!(got.dimensions(), (w, h), "k = {k}, context {context}");
+                assert_eq!(
+                    got.as_raw(),
+                    expected.as_raw(),
+                    "k = {k}, context {context}"
+                );
+                // Every source pixel is odd in each channel, the fill is 0.
+                assert!(got.pixels().all(|p| p.0.iter().all(|&c| c > 0)), "k = {k}");
+            }
+        }
+    }
+
+    /// A face the camera's frame cuts is counted apart, not as missed: it is in no row of the
+    /// tables, while at k = 0 the same face is scored.
+    #[test]
+    fn a_face_the_frame_cuts_is_counted_apart() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("grey.png");
+        image::GrayImage::from_pixel(200, 200, image::Luma([128]))
+            .save(&path)
+            .expect("saved");
+        // Eyes 40 px apart, the right one 20 px from the left edge: inside the photo by half an
+        // eye distance, but k = 0.4 about row 100 cuts the first 40 columns of every row.
+        let f = AnnotatedFace {
+            image: path.clone(),
+            right_eye: Point::new(20.0, 100.0),
+            left_eye: Point::new(60.0, 100.0),
+            nose: None,
+            mouth: None,
+        };
+        let options = ShearEvalOptions {
+            shears: vec![0.0, 0.4],
+            max_pixels: 1 << 24,
+            also_annotated: vec![],
+            face_free: false,
+            roll_degrees: 0.0,
+            canvas: EvalCanvas::Crop,
+        };
+        let unshear = Unshear::new(crate::Config::default()).expect("built-in models");
+        let r = evaluate_shear_in_context(&unshear, &[f], &options, 3.0, || {});
+        assert!(r.unreadable.is_empty(), "{:?}", r.unreadable);
+        let at = |k: f64| r.samples.iter().find(|s| s.true_k == k).expect("sample");
+        assert!(!at(0.0).cut);
+        assert!(at(0.4).cut && !at(0.4).detected);
+        let md = r.markdown();
+        assert!(md.starts_with("Faces: 1;"), "{md}");
+        // The cut table: in the frame, cut.
+        assert!(md.contains("| +0.00 | 1 | 0 |"), "{md}");
+        assert!(md.contains("| +0.40 | 0 | 1 |"), "{md}");
+        assert!(
+            md.contains("The 0 faces in the frame at every shear"),
+            "{md}"
+        );
+        // On the widened canvas nothing is cut.
+        let options = ShearEvalOptions {
+            canvas: EvalCanvas::Expand,
+            ..options
+        };
+        let f = AnnotatedFace {
+            image: path,
+            right_eye: Point::new(20.0, 100.0),
+            left_eye: Point::new(60.0, 100.0),
+            nose: None,
+            mouth: None,
+        };
+        let r = evaluate_shear_in_context(&unshear, &[f], &options, 3.0, || {});
+        assert!(r.samples.iter().all(|s| !s.cut));
     }
 
     #[test]
