@@ -74,6 +74,7 @@ pub mod pipeline;
 pub(crate) mod resample;
 #[cfg(any(test, feature = "dev"))]
 mod rng;
+mod scene;
 pub(crate) mod stats;
 #[cfg(test)]
 mod testing;
