@@ -106,7 +106,7 @@ pub struct SceneSegment {
     pub to: Point,
 }
 
-/// The shear the scene's verticals give ([module docs](crate::scene)).
+/// The shear the scene's verticals give: a second ruler beside the faces ([`ImageReport::scene`](crate::ImageReport::scene); how it is read: docs/how-it-works.md).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[non_exhaustive]
 pub struct SceneShear {
