@@ -107,12 +107,16 @@ pub enum Locator {
 pub enum Ruler {
     /// The faces alone; the scene is not read.
     Faces,
-    /// The scene is read and reported; with faces, their shear and the scene's are combined when
-    /// they agree within their uncertainties (the faces decide when they do not: the subject
-    /// moved differently from the camera); without faces the image gets no shear.
+    /// The faces make the shear; the scene is read and reported beside it (and whether the two
+    /// disagree). Combining them was measured to lose accuracy on the development photos
+    /// (docs/accuracy.md), so it is asked for with `Combine`.
     #[default]
     Auto,
-    /// As `Auto`, and without faces the scene's shear is the image's: a leaning structure
+    /// With faces, their shear and the scene's combined by their inverse variances when they
+    /// agree within their uncertainties (the faces decide when they do not: the subject moved
+    /// differently from the camera); without faces the image gets no shear.
+    Combine,
+    /// As `Combine`, and without faces the scene's shear is the image's: a leaning structure
     /// would otherwise be "straightened" wrongly, so it is asked for explicitly.
     Scene,
 }

@@ -194,7 +194,7 @@ pub(crate) fn estimate_scene_shear(gray: &GrayImage, params: &SceneParams) -> Op
         let (a, b) = (to_input(s.x1, s.y1), to_input(s.x2, s.y2));
         let (dx, dy) = (b.x - a.x, b.y - a.y);
         let length = dx.hypot(dy);
-        if !(length >= MIN_LENGTH * h) {
+        if length.is_nan() || length < MIN_LENGTH * h {
             continue;
         }
         let error = std::f64::consts::SQRT_2 * ENDPOINT_ERROR * f / length;
@@ -458,7 +458,7 @@ fn fit_lines(lines: &[Line], converging: bool) -> Option<(Model, f64)> {
         let (model, variance) = if converging {
             a11 += 1.0 / (CONVERGENCE_PRIOR * CONVERGENCE_PRIOR);
             let det = a00 * a11 - a01 * a01;
-            if !(det > 0.0) {
+            if det.is_nan() || det <= 0.0 {
                 return None;
             }
             let level = (a11 * b0 - a01 * b1) / det;

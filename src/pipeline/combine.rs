@@ -212,9 +212,10 @@ pub(crate) fn combined_shear(faces: &[FaceReport]) -> Option<f64> {
 pub(crate) const FACE_SIGMA: f64 = 0.03;
 
 /// The image's shear from the faces' consensus `faces_k` (of `faces` agreeing faces) and the
-/// scene's reading, as `ruler` asks: both, combined by their inverse variances, when they agree
-/// (within [`FACE_UNCERTAINTY`] plus twice the scene's uncertainty); the faces' when they
-/// disagree (the last value says so); the scene's without faces only with [`Ruler::Scene`].
+/// scene's reading, as `ruler` asks: with [`Ruler::Combine`] and [`Ruler::Scene`], both,
+/// combined by their inverse variances, when they agree (within [`FACE_UNCERTAINTY`] plus twice
+/// the scene's uncertainty); otherwise the faces' (the last value says whether the two
+/// disagree, whatever the ruler); the scene's without faces only with [`Ruler::Scene`].
 pub(crate) fn fuse(
     faces_k: Option<f64>,
     faces: usize,
@@ -225,6 +226,9 @@ pub(crate) fn fuse(
         (Some(kf), Some(s)) if ruler != Ruler::Faces => {
             if (kf - s.k).abs() > FACE_UNCERTAINTY + 2.0 * s.uncertainty {
                 return (Some(kf), Some(ShearSource::Faces), true);
+            }
+            if ruler == Ruler::Auto {
+                return (Some(kf), Some(ShearSource::Faces), false);
             }
             let face_var = FACE_SIGMA * FACE_SIGMA / faces.max(1) as f64;
             let scene_var = (s.uncertainty * s.uncertainty).max(1e-8);
@@ -266,7 +270,12 @@ mod fuse_tests {
     #[test]
     fn agreeing_rulers_are_combined_and_disagreeing_ones_leave_the_faces() {
         let s = scene(0.24, FACE_SIGMA);
-        let (k, source, disagree) = fuse(Some(0.20), 1, Some(&s), Ruler::Auto);
+        // Reported beside the faces' by default.
+        assert_eq!(
+            fuse(Some(0.20), 1, Some(&s), Ruler::Auto),
+            (Some(0.20), Some(ShearSource::Faces), false)
+        );
+        let (k, source, disagree) = fuse(Some(0.20), 1, Some(&s), Ruler::Combine);
         // Equal variances: the midpoint.
         assert!((k.expect("a shear") - 0.22).abs() < 1e-12);
         assert_eq!(
@@ -274,7 +283,7 @@ mod fuse_tests {
             (Some(ShearSource::FacesAndScene), false)
         );
         // Two faces weigh twice one: a third of the way to the scene.
-        let (k, ..) = fuse(Some(0.20), 2, Some(&s), Ruler::Auto);
+        let (k, ..) = fuse(Some(0.20), 2, Some(&s), Ruler::Combine);
         assert!((k.expect("a shear") - (0.20 + 0.04 / 3.0)).abs() < 1e-12);
         // Beyond FACE_UNCERTAINTY + 2 scene uncertainties: the faces decide, and say so.
         let far = scene(
@@ -283,6 +292,10 @@ mod fuse_tests {
         );
         assert_eq!(
             fuse(Some(0.20), 1, Some(&far), Ruler::Scene),
+            (Some(0.20), Some(ShearSource::Faces), true)
+        );
+        assert_eq!(
+            fuse(Some(0.20), 1, Some(&far), Ruler::Auto),
             (Some(0.20), Some(ShearSource::Faces), true)
         );
         assert_eq!(
@@ -299,6 +312,7 @@ mod fuse_tests {
     fn the_scene_alone_corrects_only_when_asked() {
         let s = scene(-0.15, 0.02);
         assert_eq!(fuse(None, 0, Some(&s), Ruler::Auto), (None, None, false));
+        assert_eq!(fuse(None, 0, Some(&s), Ruler::Combine), (None, None, false));
         assert_eq!(
             fuse(None, 0, Some(&s), Ruler::Scene),
             (Some(-0.15), Some(ShearSource::Scene), false)
@@ -315,7 +329,7 @@ mod fuse_tests {
             let kf = rng.symmetric(0.5);
             let s = scene(kf + rng.symmetric(0.2), 0.001 + rng.next_f64() * 0.03);
             let n = 1 + (rng.next_f64() * 4.0) as usize;
-            let (k, source, _) = fuse(Some(kf), n, Some(&s), Ruler::Auto);
+            let (k, source, _) = fuse(Some(kf), n, Some(&s), Ruler::Combine);
             let k = k.expect("a shear");
             if source == Some(ShearSource::FacesAndScene) {
                 assert!((k - kf).abs() <= (s.k - kf).abs() + 1e-12);

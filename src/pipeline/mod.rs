@@ -33,7 +33,8 @@ mod viola_jones_search;
 use image::{DynamicImage, GrayImage};
 
 pub(crate) use combine::combined_shear;
-use combine::{fuse, mark_consensus};
+pub(crate) use combine::fuse;
+use combine::mark_consensus;
 pub(crate) use correct::FACE_REGION_MARGIN;
 pub use face::FaceStart;
 pub use photo::FileOptions;
