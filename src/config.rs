@@ -493,10 +493,9 @@ pub const OPTIONS: &[OptionInfo] = &[
     },
     OptionInfo {
         name: "ruler",
-        kind: OptionKind::Choice(&["faces", "auto", "scene"]),
+        kind: OptionKind::Choice(&["faces", "auto", "combine", "scene"]),
         default: "auto for stills, faces for video",
-        help:
-            "What makes k: the faces, faces and the scene's verticals, or the scene without faces.",
+        help: "What makes k: faces (scene not read), auto (scene reported), combine, or scene.",
         fields: &["ruler"],
     },
 ];

@@ -272,3 +272,49 @@ fn a_large_picture_is_read_at_the_working_size() {
         .iter()
         .any(|v| (v.from.y - v.to.y).abs() > 0.5 * f64::from(big_h)));
 }
+
+/// Real web photos (the first 120 Caltech development photos in name order, whole), each
+/// sheared by ±0.2 about its middle row and cropped to the pixels that stay inside
+/// (`Canvas::Crop`: no wedge edge shows `k`). Truth: the applied `k` plus the photo's own
+/// reading when it has one (its own lean), else the applied `k`. Prints how many are answered
+/// and how accurately; fails when fewer than 5 are answered or fewer than half of the answers are
+/// within 0.05 (on the development photos about 70-80% are, docs/accuracy.md).
+#[test]
+fn real_photos_sheared_by_a_known_k() {
+    use crate::warp::{try_apply_shear, Canvas, Interpolation};
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data/caltech-webfaces/images");
+    let Ok(entries) = std::fs::read_dir(&dir) else {
+        let _ = std::io::Write::write_all(
+            &mut std::io::stderr(),
+            b"skipped: ../shared/data/caltech-webfaces not found\n",
+        );
+        return;
+    };
+    let mut paths: Vec<_> = entries.filter_map(|e| Some(e.ok()?.path())).collect();
+    paths.sort();
+    paths.truncate(120);
+    let (mut runs, mut answered, mut within) = (0, 0, 0);
+    for path in &paths {
+        let Ok(img) = image::open(path) else {
+            continue;
+        };
+        let own = estimate(&crate::detect::to_gray_opencv(&img)).map_or(0.0, |s| s.k);
+        for k in [0.2, -0.2] {
+            let shear = crate::Shear::about_middle(k, img.height());
+            let (sheared, _) = try_apply_shear(&img, shear, Interpolation::Linear, Canvas::Crop)
+                .expect("a valid shear");
+            runs += 1;
+            if let Some(s) = estimate(&crate::detect::to_gray_opencv(&sheared)) {
+                answered += 1;
+                within += usize::from((s.k - (k + own)).abs() <= 0.05);
+            }
+        }
+    }
+    let _ = std::io::Write::write_all(
+        &mut std::io::stderr(),
+        format!("real photos: {answered} of {runs} answered, {within} within 0.05\n").as_bytes(),
+    );
+    assert!(answered >= 5, "{answered} of {runs} answered");
+    assert!(2 * within >= answered, "{within} of {answered} within 0.05");
+}
