@@ -1,5 +1,6 @@
 //! A picture that shows what was detected: face boxes, eyes, nostrils and the estimated vertical
-//! axis of each face, drawn over an RGB copy of the image.
+//! axis of each face, drawn over an RGB copy of the image, and the scene's segments that voted
+//! for its shear.
 //!
 //! The three drawing primitives (thick line, filled disc, rectangle outline) are written here
 //! rather than taken from `imageproc`: that crate would pull a large dependency tree (and its own
@@ -7,7 +8,7 @@
 //! to the image, so marks partly or entirely outside it (or with non-finite coordinates) are
 //! simply cut off, never a panic.
 
-use crate::{Point, Rect};
+use crate::{Point, Rect, SceneShear};
 use image::{DynamicImage, Rgb, RgbImage};
 
 /// Everything drawn for one face.
@@ -42,6 +43,8 @@ pub(crate) const MOUTH_COLOR: Rgb<u8> = Rgb([170, 80, 255]);
 pub(crate) const LINK_COLOR: Rgb<u8> = Rgb([255, 230, 0]);
 /// Colour of the face's vertical axis under the estimated shear (magenta).
 pub(crate) const AXIS_COLOR: Rgb<u8> = Rgb([255, 0, 200]);
+/// Colour of the scene's segments that voted for the shear (cyan).
+pub(crate) const SCENE_COLOR: Rgb<u8> = Rgb([0, 255, 255]);
 /// Outline drawn around each point so it stays visible on any background (black).
 const OUTLINE_COLOR: Rgb<u8> = Rgb([0, 0, 0]);
 
@@ -83,6 +86,15 @@ pub fn draw_annotations(img: &DynamicImage, faces: &[FaceMarks]) -> RgbImage {
         }
     }
     out
+}
+
+/// Draws the scene's segments that voted for its shear ([`SceneShear::voters`]) over
+/// `picture` (cyan, the line width of [`draw_annotations`]), clipped like the face marks.
+pub fn draw_scene_segments(picture: &mut RgbImage, scene: &SceneShear) {
+    let lw = line_width(picture.width(), picture.height());
+    for s in &scene.voters {
+        draw_line(picture, s.from, s.to, lw, SCENE_COLOR);
+    }
 }
 
 /// The pixel index range `[lo, hi)` of the interval `[a, b]` clipped to `0..len`, or `None` when
@@ -301,6 +313,27 @@ mod tests {
         // An empty image.
         let empty = DynamicImage::ImageLuma8(GrayImage::new(0, 0));
         assert_eq!(draw_annotations(&empty, &[marks()]).dimensions(), (0, 0));
+    }
+
+    #[test]
+    fn scene_segments_are_drawn_where_they_are() {
+        let scene = SceneShear {
+            k: 0.1,
+            uncertainty: 0.01,
+            segments: 1,
+            lines: 1,
+            length: 0.5,
+            roll_degrees: None,
+            convergence: 0.0,
+            voters: vec![crate::SceneSegment {
+                from: Point::new(50.0, 20.0),
+                to: Point::new(60.0, 120.0),
+            }],
+        };
+        let mut out = RgbImage::from_pixel(200, 200, Rgb([9, 9, 9]));
+        draw_scene_segments(&mut out, &scene);
+        assert_eq!(*out.get_pixel(55, 70), SCENE_COLOR);
+        assert_eq!(*out.get_pixel(150, 70), Rgb([9, 9, 9]));
     }
 
     #[test]

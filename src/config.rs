@@ -100,6 +100,27 @@ pub enum Locator {
     Filters,
 }
 
+/// Which rulers make an image's shear: the faces, the scene's verticals
+/// ([`SceneShear`](crate::SceneShear)), or both.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Ruler {
+    /// The faces alone; the scene is not read.
+    Faces,
+    /// The faces make the shear; the scene is read and reported beside it (and whether the two
+    /// disagree). Combining them was measured to lose accuracy on the development photos
+    /// (docs/accuracy.md), so it is asked for with `Combine`.
+    #[default]
+    Auto,
+    /// With faces, their shear and the scene's combined by their inverse variances when they
+    /// agree within their uncertainties (the faces decide when they do not: the subject moved
+    /// differently from the camera); without faces the image gets no shear.
+    Combine,
+    /// As `Combine`, and without faces the scene's shear is the image's: a leaning structure
+    /// would otherwise be "straightened" wrongly, so it is asked for explicitly.
+    Scene,
+}
+
 /// Every setting of a corrector. `Default` is the recommended behaviour (the command line's
 /// defaults for stills); [`Config::quick`], [`Config::paper`] and [`Config::video`] are the
 /// other presets.
@@ -147,6 +168,8 @@ pub struct Config {
     pub shear_hypotheses: Option<Vec<f64>>,
     /// Head rolls (degrees) whose turned views are searched; `None`: the search's own.
     pub roll_hypotheses: Option<Vec<f64>>,
+    /// Which rulers make the image's shear (stills; video reads the faces alone).
+    pub ruler: Ruler,
 }
 
 impl Default for Config {
@@ -168,6 +191,7 @@ impl Default for Config {
             search_every_view: false,
             shear_hypotheses: None,
             roll_hypotheses: None,
+            ruler: Ruler::Auto,
         }
     }
 }
@@ -218,6 +242,7 @@ impl Config {
         Self {
             network_budget: Budget::VIDEO,
             shear_model: ShearModel::Equation5,
+            ruler: Ruler::Faces,
             ..Self::default()
         }
     }
@@ -466,6 +491,13 @@ pub const OPTIONS: &[OptionInfo] = &[
         help: "Head rolls (degrees) whose turned views are searched.",
         fields: &["roll_hypotheses"],
     },
+    OptionInfo {
+        name: "ruler",
+        kind: OptionKind::Choice(&["faces", "auto", "combine", "scene"]),
+        default: "auto for stills, faces for video",
+        help: "What makes k: faces (scene not read), auto (scene reported), combine, or scene.",
+        fields: &["ruler"],
+    },
 ];
 
 /// The [`Config`] fields no user option sets, each with why: the presets choose them.
@@ -555,6 +587,8 @@ pub struct Options {
     pub shear_hypotheses: Option<Vec<f64>>,
     /// `roll_hypotheses`.
     pub roll_hypotheses: Option<Vec<f64>>,
+    /// `ruler`.
+    pub ruler: Option<Ruler>,
 }
 
 impl Options {
@@ -652,6 +686,7 @@ impl Options {
             } else {
                 hypotheses(&self.roll_hypotheses, base.roll_hypotheses)
             },
+            ruler: self.ruler.unwrap_or(base.ruler),
         };
         config.resolve()
     }
@@ -754,7 +789,7 @@ mod tests {
         let mut fields = field_names!(Config::default() => Config {
             detector, min_face, locator, search, min_confidence, max_shear, network_budget,
             refinements, shear_model, filter_type, cascade, proposals, fallback_cascade,
-            search_every_view, shear_hypotheses, roll_hypotheses,
+            search_every_view, shear_hypotheses, roll_hypotheses, ruler,
         });
         let budget = field_names!(Budget::STILL => Budget {
             max_passes, max_supersampling, shear_tolerance, roll_tolerance, mirrored,
@@ -789,7 +824,7 @@ mod tests {
         let names = field_names!(Options::default() => Options {
             detector, locator, search, min_confidence, max_shear, max_crops, refinements,
             shear_model, filter_type, min_face, min_neighbors, scale_factor, proposals,
-            fallback_cascade, search_every_view, shear_hypotheses, roll_hypotheses,
+            fallback_cascade, search_every_view, shear_hypotheses, roll_hypotheses, ruler,
         });
         let table: Vec<String> = options().iter().map(|o| o.name.to_string()).collect();
         assert_eq!(names, table);

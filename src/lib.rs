@@ -26,13 +26,15 @@
 //! Data flows one way through the modules; none imports a module after it in this list:
 //!
 //! ```text
-//! geometry, stats ─▶ imageio ─▶ warp ─▶ detect ─▶ filters ─▶ estimate ─▶ locate ─▶ config
+//! geometry, stats ─▶ imageio ─▶ warp ─▶ scene ─▶ detect ─▶ filters ─▶ estimate ─▶ locate ─▶ config
 //!     ─▶ pipeline ─▶ video ─▶ dev (feature "dev") ─▶ the `unshear` binary (crate `unshear-cli`)
 //! ```
 //!
 //! * [`imageio`]: read (EXIF orientation applied, size-limited) and write (atomic, never over an
 //!   input).
 //! * [`warp`]: sub-pixel row shifts that apply or undo a shear (equation 6), and turned views.
+//! * `scene`: the shear the scene's verticals give ([`SceneShear`]), a second ruler beside the
+//!   faces.
 //! * [`detect`]: Viola-Jones on OpenCV's Haar cascades, the face proposal classifier, and the
 //!   geometry tying a detector box to the eyes it holds.
 //! * [`filters`]: correlation filters (UMACE, ASEF, MOSSE): synthesis, file format, correlation.
@@ -74,19 +76,21 @@ pub mod pipeline;
 pub(crate) mod resample;
 #[cfg(any(test, feature = "dev"))]
 mod rng;
+mod scene;
 pub(crate) mod stats;
 #[cfg(test)]
 mod testing;
 pub mod video;
 pub mod warp;
 
-pub use config::{Config, Detector, FaceSearch, Locator};
+pub use config::{Config, Detector, FaceSearch, Locator, Ruler};
 pub use error::{Error, Result};
 pub use geometry::{Point, Rect, Shear};
 pub use pipeline::{
     CorrectOptions, FaceReport, FaceStart, FileOptions, ImageReport, Models, Readout, Refusal,
-    Region, Unshear,
+    Region, ShearSource, Unshear,
 };
+pub use scene::{SceneSegment, SceneShear};
 
 /// The README's Rust example, compiled as a doctest so it cannot go stale.
 #[cfg(doctest)]

@@ -145,6 +145,12 @@ pub struct ModelArgs {
     /// No turned views for rolled heads (the de-sheared views are still searched).
     #[arg(help_heading = "Face search", hide_short_help = true, long)]
     pub no_roll_search: bool,
+    /// What makes k (stills): `auto` [default] the faces, with the scene's verticals read and
+    /// reported beside them; `combine` combines the two when they agree (the faces decide when
+    /// they do not); `scene` as combine, and corrects from the scene alone when no face gives k
+    /// (a leaning structure would be "straightened" too); `faces` does not read the scene.
+    #[arg(help_heading = "Face search", long, value_enum, value_name = "RULER")]
+    pub ruler: Option<RulerArg>,
     /// What finds the faces: `network` (the built-in detector trained on sheared and rolled
     /// faces) or `viola-jones` (the paper's cascade; with --thorough in every view).
     ///
@@ -270,6 +276,30 @@ impl From<DetectorArg> for unshear::Detector {
         match d {
             DetectorArg::Network => Self::Network,
             DetectorArg::ViolaJones => Self::ViolaJones,
+        }
+    }
+}
+
+/// `--ruler` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum RulerArg {
+    /// The faces alone.
+    Faces,
+    /// The faces, the scene's verticals reported beside them.
+    Auto,
+    /// The faces, combined with the scene's verticals when they agree.
+    Combine,
+    /// As combine, and the scene alone when no face gives k.
+    Scene,
+}
+
+impl From<RulerArg> for unshear::Ruler {
+    fn from(r: RulerArg) -> Self {
+        match r {
+            RulerArg::Faces => Self::Faces,
+            RulerArg::Auto => Self::Auto,
+            RulerArg::Combine => Self::Combine,
+            RulerArg::Scene => Self::Scene,
         }
     }
 }

@@ -30,7 +30,7 @@ use models::load_models;
 use report::JsonLine;
 use unshear::filters::FilterType;
 use unshear::imageio::{self, WriteOptions};
-use unshear::{Config, CorrectOptions, ImageReport, Readout, Refusal, Shear, Unshear};
+use unshear::{Config, CorrectOptions, ImageReport, Readout, Refusal, Shear, ShearSource, Unshear};
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
@@ -112,8 +112,22 @@ fn describe(report: &ImageReport) -> String {
                 Readout::Rows => "",
                 Readout::Columns => " along the columns (turned by its EXIF orientation)",
             };
+            if report.k_source == Some(ShearSource::Scene) {
+                return format!("k = {k:+.3} (from the scene's verticals; no face)");
+            }
+            let scene = match (&report.scene, report.k_source) {
+                (Some(_), Some(ShearSource::FacesAndScene)) => ", with the scene's verticals",
+                _ => "",
+            };
+            let disagree = match (&report.scene, report.scene_disagrees) {
+                (Some(s), true) => format!(
+                    "; the scene's verticals disagree (k = {:+.3}): the subject moved",
+                    s.k
+                ),
+                _ => String::new(),
+            };
             format!(
-                "k = {k:+.3}{along} ({n} face{}, best confidence {conf:.1})",
+                "k = {k:+.3}{along} ({n} face{}, best confidence {conf:.1}{scene}){disagree}",
                 if n == 1 { "" } else { "s" }
             )
         }
@@ -125,7 +139,14 @@ fn describe(report: &ImageReport) -> String {
 /// face's reason with what it measured.
 fn no_shear_reason(report: &ImageReport) -> String {
     if report.faces.is_empty() {
-        return "no face found".to_string();
+        return match &report.scene {
+            Some(s) => format!(
+                "no face found (the scene's verticals give k = {:+.3} +- {:.3}: --ruler scene \
+                 corrects by it)",
+                s.k, s.uncertainty
+            ),
+            None => "no face found".to_string(),
+        };
     }
     if report.faces_disagree {
         return format!(
@@ -438,7 +459,10 @@ fn correct_one(
     let report = unshear.estimate_photo(&img, &metadata);
     if let Some(annotate) = &a.annotate {
         create_parent(annotate)?;
-        let picture = unshear::annotate::draw_annotations(&img, &report.marks());
+        let mut picture = unshear::annotate::draw_annotations(&img, &report.marks());
+        if let Some(scene) = &report.scene {
+            unshear::annotate::draw_scene_segments(&mut picture, scene);
+        }
         write_atomic(
             &image::DynamicImage::ImageRgb8(picture),
             annotate,

@@ -45,6 +45,7 @@ pub fn options_from(m: &ModelArgs) -> Options {
     } else {
         m.roll_hypotheses.clone()
     };
+    o.ruler = m.ruler.map(Into::into);
     o
 }
 
@@ -215,6 +216,7 @@ mod tests {
             "--search-every-view",
             "--shear-hypotheses=0.1,-0.1",
             "--roll-hypotheses=10",
+            "--ruler=scene",
         ]);
         let o = options_from(&m);
         assert!(!format!("{o:?}").contains("None"), "{o:?}");
@@ -222,6 +224,7 @@ mod tests {
         assert_eq!(c.max_shear, 0.3);
         assert_eq!(c.refinements, 2);
         assert_eq!(c.network_budget.max_passes, 3);
+        assert_eq!(c.ruler, unshear::Ruler::Scene);
         // The former spelling still works.
         assert_eq!(model_args(&["--refine=4"]).refinements, 4);
     }

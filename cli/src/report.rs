@@ -3,7 +3,9 @@
 //! "left_eye": [x, y], "right_nostril": [x, y], "left_nostril": [x, y], "nose": [x, y]|null,
 //! "mouth": [x, y]|null, "k": number|null, "k_measured": number, "roll": number,
 //! "confidence": number}]}` plus
-//! `"error": "..."` when the input failed, `"faces_disagree"` and `"warnings"`, and
+//! `"error": "..."` when the input failed, `"faces_disagree"` and `"warnings"`, `"k_source"`
+//! (which rulers made `k`) when `k` is set, `"scene_k"` and `"scene_uncertainty"` when the
+//! scene's verticals give a shear, `"scene_disagrees": true` when they disagree with the faces, and
 //! `"readout": "columns"` for a picture read out column by column; each face also
 //! has `"refused"` (why its `k` is null) and `"outvoted"`. A face's `k` is null when its
 //! estimate was refused; `k_measured` is what was measured all the same; `roll` is in degrees.
@@ -35,6 +37,19 @@ pub struct JsonFace {
 pub struct JsonLine {
     file: String,
     k: Option<f64>,
+    /// Which rulers made `k`: `"faces"`, `"faces+scene"` or `"scene"`; left out when `k` is
+    /// null.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    k_source: Option<&'static str>,
+    /// The shear the scene's verticals give, and its uncertainty (one standard deviation);
+    /// left out when the scene gives none.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    scene_k: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    scene_uncertainty: Option<f64>,
+    /// Whether the faces and the scene disagree (the faces made `k`); left out when false.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    scene_disagrees: bool,
     faces: Vec<JsonFace>,
     faces_disagree: bool,
     warnings: Vec<String>,
@@ -68,6 +83,10 @@ impl JsonLine {
         Self {
             file: file.to_string(),
             k: report.k.map(r4),
+            k_source: report.k_source.map(|s| s.name()),
+            scene_k: report.scene.as_ref().map(|s| r4(s.k)),
+            scene_uncertainty: report.scene.as_ref().map(|s| r4(s.uncertainty)),
+            scene_disagrees: report.scene_disagrees,
             faces: report.faces.iter().map(face).collect(),
             faces_disagree: report.faces_disagree,
             warnings: report.warnings.clone(),
@@ -81,6 +100,10 @@ impl JsonLine {
         Self {
             file: file.to_string(),
             k: None,
+            k_source: None,
+            scene_k: None,
+            scene_uncertainty: None,
+            scene_disagrees: false,
             faces: Vec::new(),
             faces_disagree: false,
             warnings: Vec::new(),

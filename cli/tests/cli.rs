@@ -57,7 +57,20 @@ fn estimate_json_has_the_documented_shape() {
     let obj = v.as_object().expect("object");
     let mut keys: Vec<&str> = obj.keys().map(String::as_str).collect();
     keys.sort();
-    assert_eq!(keys, ["faces", "faces_disagree", "file", "k", "warnings"]);
+    // `scene_k` and `scene_uncertainty` only when the scene's verticals give a shear (a lab
+    // photo's plain wall gives none).
+    assert_eq!(
+        keys,
+        [
+            "faces",
+            "faces_disagree",
+            "file",
+            "k",
+            "k_source",
+            "warnings"
+        ]
+    );
+    assert_eq!(v["k_source"], "faces");
     assert!(v["file"]
         .as_str()
         .expect("file")
@@ -530,4 +543,81 @@ fn filter_file_of_unknown_type_is_refused() {
         .assert()
         .failure()
         .stderr(predicates::str::contains("unknown filter type code 9"));
+}
+
+/// A drawn street without faces in `dir`: upright poles and two level bands, sheared by `k`
+/// about the middle row (each pixel's cover found from 4x4 samples).
+fn sheared_street(dir: &Path, k: f64) -> PathBuf {
+    let (w, h) = (480u32, 360u32);
+    let c = f64::from(h) / 2.0;
+    let inside = |x: f64, y: f64| {
+        let sx = x - k * (y - c);
+        let pole = [40.0, 130.0, 210.0, 300.0, 380.0]
+            .iter()
+            .any(|&p| sx >= p && sx <= p + 14.0);
+        let band = [120.0, 250.0].iter().any(|&b| y >= b && y <= b + 6.0);
+        pole || band
+    };
+    let img = image::GrayImage::from_fn(w, h, |x, y| {
+        let mut dark = 0;
+        for i in 0..4 {
+            for j in 0..4 {
+                let (sx, sy) = (
+                    f64::from(x) + (f64::from(i) - 1.5) / 4.0,
+                    f64::from(y) + (f64::from(j) - 1.5) / 4.0,
+                );
+                dark += u32::from(inside(sx, sy));
+            }
+        }
+        image::Luma([(200 - dark * 150 / 16) as u8])
+    });
+    let path = dir.join(format!("street_{k}.png"));
+    img.save(&path).expect("written");
+    path
+}
+
+#[test]
+fn the_scene_ruler_is_reported_and_corrects_only_when_asked() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let street = sheared_street(dir.path(), 0.2);
+    let v = estimate_json(&street, &[]);
+    assert!(v["k"].is_null() && v.get("k_source").is_none(), "{v}");
+    let scene_k = v["scene_k"].as_f64().expect("the scene's shear");
+    assert!((scene_k - 0.2).abs() < 0.02, "{v}");
+    assert!(v["scene_uncertainty"].as_f64().expect("its uncertainty") > 0.0);
+    let v = estimate_json(&street, &["--ruler", "scene"]);
+    assert_eq!(v["k"].as_f64(), Some(scene_k), "{v}");
+    assert_eq!(v["k_source"], "scene");
+    let v = estimate_json(&street, &["--ruler", "faces"]);
+    assert!(v.get("scene_k").is_none(), "{v}");
+    // `correct` writes nothing by default, and corrects with --ruler scene, the voting
+    // segments drawn in the annotated picture.
+    let out = dir.path().join("fixed.png");
+    unshear()
+        .args(["correct", "-o"])
+        .arg(&out)
+        .arg(&street)
+        .assert()
+        .success()
+        .stderr(predicates::str::contains("--ruler scene corrects by it"));
+    assert!(!out.exists());
+    let annotated = dir.path().join("found.png");
+    unshear()
+        .args(["correct", "--ruler", "scene", "-o"])
+        .arg(&out)
+        .arg("--annotate")
+        .arg(&annotated)
+        .arg(&street)
+        .assert()
+        .success();
+    let fixed = estimate_json(&out, &[]);
+    assert!(
+        fixed["scene_k"].as_f64().expect("read again").abs() < 0.02,
+        "{fixed}"
+    );
+    let picture = image::open(&annotated).expect("a PNG").to_rgb8();
+    assert!(
+        picture.pixels().any(|p| p.0 == [0, 255, 255]),
+        "cyan segments"
+    );
 }

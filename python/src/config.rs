@@ -9,7 +9,7 @@ use pyo3::types::{PyDict, PyList};
 use unshear::config::{Options, Search};
 use unshear::estimate::ShearModel;
 use unshear::filters::FilterType;
-use unshear::{Config, Detector, Locator, Unshear};
+use unshear::{Config, Detector, Locator, Ruler, Unshear};
 
 /// Every setting of `unshear.Unshear(**config)`, with the CLI's defaults (`None`: the default
 /// of stills or of video, as the CLI leaves it).
@@ -36,6 +36,8 @@ pub struct PyConfig {
     pub search_every_view: bool,
     pub shear_hypotheses: Option<Vec<f64>>,
     pub roll_hypotheses: Option<Vec<f64>>,
+    /// `None`: `auto` for stills, `faces` for video (as the CLI leaves it).
+    pub ruler: Option<Ruler>,
 }
 
 impl Default for PyConfig {
@@ -60,6 +62,7 @@ impl Default for PyConfig {
             search_every_view: c.search_every_view,
             shear_hypotheses: c.shear_hypotheses,
             roll_hypotheses: c.roll_hypotheses,
+            ruler: None,
         }
     }
 }
@@ -202,6 +205,12 @@ pub const SHEAR_MODELS: [(&str, ShearModel); 3] = [
     ("shear-roll", ShearModel::ShearRoll),
     ("shear-roll-yaw", ShearModel::ShearRollYaw),
 ];
+pub const RULERS: [(&str, Ruler); 4] = [
+    ("faces", Ruler::Faces),
+    ("auto", Ruler::Auto),
+    ("combine", Ruler::Combine),
+    ("scene", Ruler::Scene),
+];
 pub const FILTER_TYPES: [(&str, FilterType); 3] = [
     ("umace", FilterType::Umace),
     ("asef", FilterType::Asef),
@@ -235,6 +244,7 @@ impl PyConfig {
                         | "min_face"
                         | "shear_hypotheses"
                         | "roll_hypotheses"
+                        | "ruler"
                 );
             if optional_none {
                 continue;
@@ -260,6 +270,7 @@ impl PyConfig {
                 "search_every_view" => c.search_every_view = flag(&key, &value)?,
                 "shear_hypotheses" => c.shear_hypotheses = floats(&key, &value)?,
                 "roll_hypotheses" => c.roll_hypotheses = floats(&key, &value)?,
+                "ruler" => c.ruler = Some(choice(&key, &value, &RULERS)?),
                 _ => {
                     return Err(PyTypeError::new_err(format!(
                         "{caller}() got an unexpected keyword argument '{key}' (settings: {})",
@@ -295,6 +306,7 @@ impl PyConfig {
         o.search_every_view = Some(self.search_every_view);
         o.shear_hypotheses = self.shear_hypotheses.clone();
         o.roll_hypotheses = self.roll_hypotheses.clone();
+        o.ruler = self.ruler;
         o
     }
 
@@ -332,6 +344,7 @@ impl PyConfig {
         };
         d.set_item("shear_hypotheses", list(&self.shear_hypotheses)?)?;
         d.set_item("roll_hypotheses", list(&self.roll_hypotheses)?)?;
+        d.set_item("ruler", self.ruler.map(|r| name_of(&RULERS, r)))?;
         Ok(d)
     }
 }

@@ -125,6 +125,7 @@ def test_defaults_are_the_clis() -> None:
         "search_every_view": False,
         "shear_hypotheses": None,
         "roll_hypotheses": None,
+        "ruler": None,
     }
     assert unshear.Unshear().max_pixels == unshear.DEFAULT_MAX_PIXELS == 250_000_000
 
@@ -148,6 +149,7 @@ def test_every_setting_round_trips() -> None:
         "search_every_view": True,
         "shear_hypotheses": [0.2, -0.2],
         "roll_hypotheses": [15.0],
+        "ruler": "scene",
     }
     u = unshear.Unshear(**config)
     assert u.config == config

@@ -179,6 +179,10 @@ class Unshear:
     * ``search_every_view``: with ``search="quick"``, search every view of every image.
     * ``shear_hypotheses`` / ``roll_hypotheses``: the de-sheared views' shears and the turned
       views' rolls in degrees (default ``None``: the search's own).
+    * ``ruler``: what makes ``k``: ``"auto"`` (the stills' default) the faces, the scene's
+      verticals read and reported beside them; ``"combine"`` combines the two when they agree;
+      ``"scene"`` also takes the scene's shear when no face gives one; ``"faces"`` (video's
+      default) reads the faces alone.
 
     ``max_pixels`` bounds the images accepted (default 250,000,000). Bad settings raise
     ``ValueError`` naming the setting and its range for bad values (out of range, negative or
@@ -207,6 +211,7 @@ class Unshear:
         search_every_view: bool = False,
         shear_hypotheses: Iterable[float] | None = None,
         roll_hypotheses: Iterable[float] | None = None,
+        ruler: Literal["faces", "auto", "combine", "scene"] | None = None,
     ) -> Unshear: ...
     @property
     def config(self) -> dict[str, Any]:
@@ -382,6 +387,7 @@ class VideoCorrector:
         search_every_view: bool = False,
         shear_hypotheses: Iterable[float] | None = None,
         roll_hypotheses: Iterable[float] | None = None,
+        ruler: Literal["faces", "auto", "combine", "scene"] | None = None,
     ) -> VideoCorrector: ...
     @property
     def pending(self) -> int:

@@ -1,7 +1,9 @@
 //! Faces found more than once reduced to one, and the image's shear from its faces.
 
-use super::report::{FaceReport, FoundBox, Refusal};
+use super::report::{FaceReport, FoundBox, Refusal, ShearSource};
+use crate::config::Ruler;
 use crate::geometry::Rect;
+use crate::scene::SceneShear;
 use crate::stats::weighted_median;
 
 /// Whether `b` holds both eyes that `report` located.
@@ -204,6 +206,41 @@ pub(crate) fn combined_shear(faces: &[FaceReport]) -> Option<f64> {
     consensus(faces).k
 }
 
+/// One standard deviation of a face's estimate, for combining it with the scene's: 90% of the
+/// development faces' estimates are within 0.05 of the truth (docs/accuracy.md), a normal
+/// error's 1.645 standard deviations.
+pub(crate) const FACE_SIGMA: f64 = 0.03;
+
+/// The image's shear from the faces' consensus `faces_k` (of `faces` agreeing faces) and the
+/// scene's reading, as `ruler` asks: with [`Ruler::Combine`] and [`Ruler::Scene`], both,
+/// combined by their inverse variances, when they agree (within [`FACE_UNCERTAINTY`] plus twice
+/// the scene's uncertainty); otherwise the faces' (the last value says whether the two
+/// disagree, whatever the ruler); the scene's without faces only with [`Ruler::Scene`].
+pub(crate) fn fuse(
+    faces_k: Option<f64>,
+    faces: usize,
+    scene: Option<&SceneShear>,
+    ruler: Ruler,
+) -> (Option<f64>, Option<ShearSource>, bool) {
+    match (faces_k, scene) {
+        (Some(kf), Some(s)) if ruler != Ruler::Faces => {
+            if (kf - s.k).abs() > FACE_UNCERTAINTY + 2.0 * s.uncertainty {
+                return (Some(kf), Some(ShearSource::Faces), true);
+            }
+            if ruler == Ruler::Auto {
+                return (Some(kf), Some(ShearSource::Faces), false);
+            }
+            let face_var = FACE_SIGMA * FACE_SIGMA / faces.max(1) as f64;
+            let scene_var = (s.uncertainty * s.uncertainty).max(1e-8);
+            let k = (kf / face_var + s.k / scene_var) / (1.0 / face_var + 1.0 / scene_var);
+            (Some(k), Some(ShearSource::FacesAndScene), false)
+        }
+        (Some(kf), _) => (Some(kf), Some(ShearSource::Faces), false),
+        (None, Some(s)) if ruler == Ruler::Scene => (Some(s.k), Some(ShearSource::Scene), false),
+        (None, _) => (None, None, false),
+    }
+}
+
 /// [`consensus`] of `faces`, with the faces it outvotes marked so (`outvoted`).
 pub(crate) fn mark_consensus(faces: &mut [FaceReport]) -> Consensus {
     let consensus = consensus(faces);
@@ -211,4 +248,95 @@ pub(crate) fn mark_consensus(faces: &mut [FaceReport]) -> Consensus {
         faces[i].outvoted = true;
     }
     consensus
+}
+
+#[cfg(test)]
+mod fuse_tests {
+    use super::*;
+
+    fn scene(k: f64, uncertainty: f64) -> SceneShear {
+        SceneShear {
+            k,
+            uncertainty,
+            segments: 6,
+            lines: 4,
+            length: 2.0,
+            roll_degrees: None,
+            convergence: 0.0,
+            voters: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn agreeing_rulers_are_combined_and_disagreeing_ones_leave_the_faces() {
+        let s = scene(0.24, FACE_SIGMA);
+        // Reported beside the faces' by default.
+        assert_eq!(
+            fuse(Some(0.20), 1, Some(&s), Ruler::Auto),
+            (Some(0.20), Some(ShearSource::Faces), false)
+        );
+        let (k, source, disagree) = fuse(Some(0.20), 1, Some(&s), Ruler::Combine);
+        // Equal variances: the midpoint.
+        assert!((k.expect("a shear") - 0.22).abs() < 1e-12);
+        assert_eq!(
+            (source, disagree),
+            (Some(ShearSource::FacesAndScene), false)
+        );
+        // Two faces weigh twice one: a third of the way to the scene.
+        let (k, ..) = fuse(Some(0.20), 2, Some(&s), Ruler::Combine);
+        assert!((k.expect("a shear") - (0.20 + 0.04 / 3.0)).abs() < 1e-12);
+        // Beyond FACE_UNCERTAINTY + 2 scene uncertainties: the faces decide, and say so.
+        let far = scene(
+            0.20 + FACE_UNCERTAINTY + 2.0 * FACE_SIGMA + 0.01,
+            FACE_SIGMA,
+        );
+        assert_eq!(
+            fuse(Some(0.20), 1, Some(&far), Ruler::Scene),
+            (Some(0.20), Some(ShearSource::Faces), true)
+        );
+        assert_eq!(
+            fuse(Some(0.20), 1, Some(&far), Ruler::Auto),
+            (Some(0.20), Some(ShearSource::Faces), true)
+        );
+        assert_eq!(
+            fuse(Some(0.20), 1, None, Ruler::Auto),
+            (Some(0.20), Some(ShearSource::Faces), false)
+        );
+        assert_eq!(
+            fuse(Some(0.20), 1, Some(&s), Ruler::Faces),
+            (Some(0.20), Some(ShearSource::Faces), false)
+        );
+    }
+
+    #[test]
+    fn the_scene_alone_corrects_only_when_asked() {
+        let s = scene(-0.15, 0.02);
+        assert_eq!(fuse(None, 0, Some(&s), Ruler::Auto), (None, None, false));
+        assert_eq!(fuse(None, 0, Some(&s), Ruler::Combine), (None, None, false));
+        assert_eq!(
+            fuse(None, 0, Some(&s), Ruler::Scene),
+            (Some(-0.15), Some(ShearSource::Scene), false)
+        );
+        assert_eq!(fuse(None, 0, None, Ruler::Scene), (None, None, false));
+    }
+
+    #[test]
+    fn a_combined_shear_is_never_further_from_the_faces_than_the_scene_is() {
+        // Whatever the two say, the combination lies between them: never worse than the
+        // faces alone by more than how far the scene's reading (within its window) is.
+        let mut rng = crate::rng::SplitMix64::new(3);
+        for _ in 0..1000 {
+            let kf = rng.symmetric(0.5);
+            let s = scene(kf + rng.symmetric(0.2), 0.001 + rng.next_f64() * 0.03);
+            let n = 1 + (rng.next_f64() * 4.0) as usize;
+            let (k, source, _) = fuse(Some(kf), n, Some(&s), Ruler::Combine);
+            let k = k.expect("a shear");
+            if source == Some(ShearSource::FacesAndScene) {
+                assert!((k - kf).abs() <= (s.k - kf).abs() + 1e-12);
+                assert!((k - kf).abs() <= FACE_UNCERTAINTY + 2.0 * s.uncertainty + 1e-12);
+            } else {
+                assert_eq!(k, kf);
+            }
+        }
+    }
 }

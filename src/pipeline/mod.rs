@@ -33,13 +33,14 @@ mod viola_jones_search;
 use image::{DynamicImage, GrayImage};
 
 pub(crate) use combine::combined_shear;
+pub(crate) use combine::fuse;
 use combine::mark_consensus;
 pub(crate) use correct::FACE_REGION_MARGIN;
 pub use face::FaceStart;
 pub use photo::FileOptions;
 pub(crate) use proposals::{box_from_eyes, follows};
 pub(crate) use report::FoundBox;
-pub use report::{CorrectOptions, FaceReport, ImageReport, Readout, Refusal, Region};
+pub use report::{CorrectOptions, FaceReport, ImageReport, Readout, Refusal, Region, ShearSource};
 use viola_jones_search::MAX_VIEW_PIXELS_RATIO;
 pub use viola_jones_search::{
     Detection, DEFAULT_ROLL_HYPOTHESES, DEFAULT_SHEAR_HYPOTHESES, THOROUGH_ROLL_HYPOTHESES,
@@ -47,7 +48,7 @@ pub use viola_jones_search::{
 };
 
 use crate::config::Config;
-pub use crate::config::{Detector, FaceSearch, Locator};
+pub use crate::config::{Detector, FaceSearch, Locator, Ruler};
 use crate::detect::{Cascade, FaceDetector, ProposalNet};
 use crate::error::Result;
 use crate::filters::{EyeFilters, FilterType};
@@ -234,6 +235,10 @@ impl Unshear {
         report.k = consensus.k;
         report.faces_disagree = consensus.no_majority;
         report.readout = Readout::Columns;
+        // The scene was read along the rows: a vertical shear is not what it measured.
+        report.scene = None;
+        report.scene_disagrees = false;
+        report.k_source = report.k.map(|_| ShearSource::Faces);
         if !report.faces.is_empty() {
             report.warnings.push(
                 "read out column by column (the picture is turned a quarter by its EXIF \
@@ -286,14 +291,26 @@ impl Unshear {
             .filter_map(|found| found.report)
             .collect();
         let consensus = mark_consensus(&mut faces);
+        let scene = (self.config.ruler != Ruler::Faces)
+            .then(|| crate::scene::estimate_scene_shear(gray, &Default::default()))
+            .flatten();
+        let agreeing = faces
+            .iter()
+            .filter(|f| f.k.is_some() && !f.outvoted)
+            .count();
+        let (k, k_source, scene_disagrees) =
+            fuse(consensus.k, agreeing, scene.as_ref(), self.config.ruler);
         ImageReport {
-            k: consensus.k,
+            k,
             faces,
             faces_disagree: consensus.no_majority,
             warnings: self.shape_warnings(gray.width(), gray.height()),
             width: gray.width(),
             height: gray.height(),
             readout: Readout::Rows,
+            scene,
+            k_source,
+            scene_disagrees,
         }
     }
 

@@ -6,6 +6,7 @@ use serde::{Deserialize, Serialize};
 use crate::annotate::FaceMarks;
 use crate::config::Locator;
 use crate::geometry::{Point, Rect};
+use crate::scene::SceneShear;
 use crate::warp::{Canvas, Interpolation};
 
 /// Why a face's estimate was refused (its `k` is `None`, [`FaceReport::k_measured`] kept).
@@ -143,6 +144,32 @@ pub enum Readout {
     Columns,
 }
 
+/// Which rulers made an image's shear ([`ImageReport::k_source`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[non_exhaustive]
+pub enum ShearSource {
+    /// The faces alone.
+    #[serde(rename = "faces")]
+    Faces,
+    /// The faces and the scene's verticals, which agreed, combined.
+    #[serde(rename = "faces+scene")]
+    FacesAndScene,
+    /// The scene's verticals alone (no face; [`Ruler::Scene`](crate::config::Ruler::Scene)).
+    #[serde(rename = "scene")]
+    Scene,
+}
+
+impl ShearSource {
+    /// The name printed in the JSON output: `"faces"`, `"faces+scene"` or `"scene"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Faces => "faces",
+            Self::FacesAndScene => "faces+scene",
+            Self::Scene => "scene",
+        }
+    }
+}
+
 /// What was found in one image.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[non_exhaustive]
@@ -165,6 +192,18 @@ pub struct ImageReport {
     /// Which way the picture was read out: the direction of every `k` here.
     #[serde(default)]
     pub readout: Readout,
+    /// The shear the scene's verticals give, when they give one that can be trusted (not read
+    /// with [`Ruler::Faces`](crate::config::Ruler::Faces), nor for a picture read out by
+    /// columns).
+    #[serde(default)]
+    pub scene: Option<SceneShear>,
+    /// Which rulers made `k` (`None` when `k` is).
+    #[serde(default)]
+    pub k_source: Option<ShearSource>,
+    /// Whether the faces and the scene both gave a shear and these disagree beyond their
+    /// uncertainties: the faces decided (the subject moved differently from the camera).
+    #[serde(default)]
+    pub scene_disagrees: bool,
 }
 
 impl ImageReport {
@@ -179,6 +218,9 @@ impl ImageReport {
             width,
             height,
             readout: Readout::Rows,
+            scene: None,
+            k_source: None,
+            scene_disagrees: false,
         }
     }
 

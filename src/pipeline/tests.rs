@@ -945,6 +945,9 @@ fn a_correction_changes_the_image_only_with_a_shear_to_apply() {
         width: 10,
         height: 10,
         readout: Readout::Rows,
+        scene: None,
+        k_source: None,
+        scene_disagrees: false,
     };
     let options = |region, k| CorrectOptions {
         region,
@@ -983,6 +986,9 @@ fn a_picture_read_by_columns_reports_its_vertical_shear() {
         width: 10,
         height: 10,
         readout: Readout::Rows,
+        scene: None,
+        k_source: None,
+        scene_disagrees: false,
     };
     let columns = u.read_by_columns(report);
     assert_eq!(columns.readout, Readout::Columns);
@@ -1013,6 +1019,9 @@ fn a_picture_read_by_columns_reports_its_vertical_shear() {
         width: 10,
         height: 10,
         readout: Readout::Rows,
+        scene: None,
+        k_source: None,
+        scene_disagrees: false,
     });
     assert_eq!(far.k, None);
     assert_eq!(far.faces[0].refused, Some(Refusal::ImplausibleShear));
@@ -1043,6 +1052,9 @@ fn a_correction_by_columns_straightens_a_vertically_sheared_line() {
         width: 120,
         height: 80,
         readout: Readout::Columns,
+        scene: None,
+        k_source: None,
+        scene_disagrees: false,
     };
     let fixed = Unshear::correct(&sheared, &report, &CorrectOptions::default())
         .expect("corrected")
