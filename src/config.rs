@@ -107,8 +107,8 @@ pub enum Locator {
 pub enum Ruler {
     /// The faces alone; the scene is not read.
     Faces,
-    /// The faces make the shear; the scene is read and reported beside it (and whether the two
-    /// disagree). Combining them was measured to lose accuracy on the development photos
+    /// The faces make the shear; when no face gives one, the scene is read and reported (not
+    /// used). Combining them was measured to lose accuracy on the development photos
     /// (docs/accuracy.md), so it is asked for with `Combine`.
     #[default]
     Auto,
@@ -495,7 +495,7 @@ pub const OPTIONS: &[OptionInfo] = &[
         name: "ruler",
         kind: OptionKind::Choice(&["faces", "auto", "combine", "scene"]),
         default: "auto for stills, faces for video",
-        help: "What makes k: faces (scene not read), auto (scene reported), combine, or scene.",
+        help: "What makes k: faces (scene not read), auto (faces; the scene reported when no face gives k), combine, or scene.",
         fields: &["ruler"],
     },
 ];

@@ -179,8 +179,8 @@ class Unshear:
     * ``search_every_view``: with ``search="quick"``, search every view of every image.
     * ``shear_hypotheses`` / ``roll_hypotheses``: the de-sheared views' shears and the turned
       views' rolls in degrees (default ``None``: the search's own).
-    * ``ruler``: what makes ``k``: ``"auto"`` (the stills' default) the faces, the scene's
-      verticals read and reported beside them; ``"combine"`` combines the two when they agree;
+    * ``ruler``: what makes ``k``: ``"auto"`` (the stills' default) the faces (the scene's
+      verticals read and reported only when no face gives ``k``); ``"combine"`` combines the two when they agree;
       ``"scene"`` also takes the scene's shear when no face gives one; ``"faces"`` (video's
       default) reads the faces alone.
 

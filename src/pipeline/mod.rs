@@ -291,7 +291,14 @@ impl Unshear {
             .filter_map(|found| found.report)
             .collect();
         let consensus = mark_consensus(&mut faces);
-        let scene = (self.config.ruler != Ruler::Faces)
+        // `auto` reads the scene only when no face gives `k` (then it is reported, not used):
+        // with faces it would cost its time and, as measured, not make `k` better.
+        let read_scene = match self.config.ruler {
+            Ruler::Faces => false,
+            Ruler::Auto => consensus.k.is_none(),
+            Ruler::Combine | Ruler::Scene => true,
+        };
+        let scene = read_scene
             .then(|| crate::scene::estimate_scene_shear(gray, &Default::default()))
             .flatten();
         let agreeing = faces

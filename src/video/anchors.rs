@@ -133,7 +133,7 @@ mod tests {
             };
             s.advance(Some((v, 0.0)));
             let x = 500.0 + s.offset.0 + 0.3; // measurement noise
-            if (0.0..1280.0).contains(&x) && matches!(n, 2 | 13 | 25) {
+            if (0.0..1920.0).contains(&x) && matches!(n, 2 | 13 | 25) {
                 let track = n as u64; // a new track each time
                 ids.push(s.identify(track, s.place(x, 300.0, 0.0, 360.0), 40.0));
             }
