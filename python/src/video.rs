@@ -41,10 +41,62 @@ struct Shape {
     layout: Layout,
 }
 
+/// Where a stream is: pushed frame by frame, or read in two passes (`analyse` then
+/// `replay`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Phase {
+    Fresh,
+    Pushing,
+    Analysing,
+    Replaying,
+}
+
 struct State {
     stream: Stream,
     shape: Option<Shape>,
     finished: bool,
+    phase: Phase,
+}
+
+impl State {
+    /// Checks that `shape` is the first frame's (fixing it on the first frame) and that the
+    /// stream may go to `phase` from where it is.
+    fn admit(&mut self, shape: Shape, phase: Phase) -> PyResult<()> {
+        if self.finished {
+            return Err(bad(
+                "finish() was called: this stream is over (make a new VideoCorrector)".into(),
+            ));
+        }
+        let allowed = match phase {
+            Phase::Pushing => matches!(self.phase, Phase::Fresh | Phase::Pushing),
+            Phase::Analysing => matches!(self.phase, Phase::Fresh | Phase::Analysing),
+            Phase::Replaying => self.phase == Phase::Replaying,
+            Phase::Fresh => false,
+        };
+        if !allowed {
+            return Err(bad(match phase {
+                Phase::Pushing => "push() after analyse(): a stream in two passes takes \
+                                   analyse(), end_analysis(), then replay()"
+                    .into(),
+                Phase::Analysing => "analyse() after push() or end_analysis(): the first pass \
+                                     comes first, on a new VideoCorrector"
+                    .into(),
+                _ => "replay() before end_analysis(): analyse every frame first".into(),
+            }));
+        }
+        match self.shape {
+            None => self.shape = Some(shape),
+            Some(first) if first != shape => {
+                return Err(bad(format!(
+                    "every frame must have the first frame's size and layout: {}x{} {:?}, got {}x{} {:?}",
+                    first.width, first.height, first.color, shape.width, shape.height, shape.color
+                )));
+            }
+            Some(_) => {}
+        }
+        self.phase = phase;
+        Ok(())
+    }
 }
 
 /// One corrected frame: the image (in the layout and dtype it was pushed in) and its shears.
@@ -320,6 +372,7 @@ impl VideoCorrector {
                 stream,
                 shape: None,
                 finished: false,
+                phase: Phase::Fresh,
             }),
             bgr,
             max_pixels,
@@ -351,21 +404,7 @@ impl VideoCorrector {
         };
         let out = py.detach(|| -> PyResult<_> {
             let mut state = self.lock()?;
-            if state.finished {
-                return Err(bad(
-                    "finish() was called: this stream is over (make a new VideoCorrector)".into(),
-                ));
-            }
-            match state.shape {
-                None => state.shape = Some(shape),
-                Some(first) if first != shape => {
-                    return Err(bad(format!(
-                        "every frame must have the first frame's size and layout: {}x{} {:?}, got {}x{} {:?}",
-                        first.width, first.height, first.color, shape.width, shape.height, shape.color
-                    )));
-                }
-                Some(_) => {}
-            }
+            state.admit(shape, Phase::Pushing)?;
             state
                 .stream
                 .with_dependent_mut(|_, p| p.process(VideoFrame::Image(input.image)))
@@ -374,12 +413,79 @@ impl VideoCorrector {
         frames_out(py, out.into_iter().collect(), shape.layout)
     }
 
+    /// The first of two passes over a clip that can be read twice (a file): analyses the next
+    /// frame (faces, motion, the readout's calibration) and keeps its results, not its pixels.
+    /// After the last frame, ``end_analysis()``; then the same frames again through
+    /// ``replay()``.
+    fn analyse(&self, py: Python<'_>, frame: &Bound<'_, PyAny>) -> PyResult<()> {
+        let input = from_array(py, frame, self.bgr, self.max_pixels)?;
+        let shape = Shape {
+            width: input.image.width(),
+            height: input.image.height(),
+            color: input.image.color(),
+            layout: input.layout,
+        };
+        py.detach(|| -> PyResult<()> {
+            let mut state = self.lock()?;
+            state.admit(shape, Phase::Analysing)?;
+            state
+                .stream
+                .with_dependent_mut(|_, p| p.analyse_frame(&VideoFrame::Image(input.image)));
+            Ok(())
+        })
+    }
+
+    /// Ends the first pass: the readout fitted over the whole clip. Returns the readout
+    /// fraction the second pass corrects by (``None`` when it could not be found: the frames
+    /// are then corrected from their faces).
+    fn end_analysis(&self, py: Python<'_>) -> PyResult<Option<f64>> {
+        py.detach(|| -> PyResult<_> {
+            let mut state = self.lock()?;
+            if state.phase != Phase::Analysing || state.finished {
+                return Err(bad(
+                    "end_analysis() without a first pass: call analyse() on every frame first"
+                        .into(),
+                ));
+            }
+            state.phase = Phase::Replaying;
+            Ok(state.stream.with_dependent_mut(|_, p| {
+                p.end_analysis();
+                p.readout_fraction()
+            }))
+        })
+    }
+
+    /// The second pass: the next frame of the clip, in the order analysed, corrected with what
+    /// the first pass found.
+    fn replay(&self, py: Python<'_>, frame: &Bound<'_, PyAny>) -> PyResult<Frame> {
+        let input = from_array(py, frame, self.bgr, self.max_pixels)?;
+        let shape = Shape {
+            width: input.image.width(),
+            height: input.image.height(),
+            color: input.image.color(),
+            layout: input.layout,
+        };
+        let out = py.detach(|| -> PyResult<_> {
+            let mut state = self.lock()?;
+            state.admit(shape, Phase::Replaying)?;
+            state
+                .stream
+                .with_dependent_mut(|_, p| p.replay(VideoFrame::Image(input.image)))
+                .map_err(to_pyerr)
+        })?;
+        frames_out(py, vec![out], shape.layout)?
+            .pop()
+            .ok_or_else(|| PyRuntimeError::new_err("no frame"))
+    }
+
     /// Ends the stream: returns every frame still held, corrected with the shears smoothed over
     /// all the frames seen.
     fn finish(&self, py: Python<'_>) -> PyResult<Vec<Frame>> {
         let (out, layout) = py.detach(|| -> PyResult<_> {
             let mut state = self.lock()?;
-            if state.finished {
+            // In two passes every frame came out of replay(): nothing is held.
+            if state.finished || matches!(state.phase, Phase::Analysing | Phase::Replaying) {
+                state.finished = true;
                 return Ok((Vec::new(), None));
             }
             state.finished = true;

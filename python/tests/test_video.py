@@ -218,3 +218,37 @@ def test_a_pan_with_a_known_readout_is_corrected_from_motion() -> None:
         assert abs(f.k - k) < 0.01, (f.index, f.k, k)
     faces_only = run(unshear.VideoCorrector(fps=30, readout_fraction=rho, motion=False), frames)
     assert all(f.k_source != "motion" for f in faces_only)
+
+
+def test_two_passes_calibrate_the_readout_from_a_swinging_pan() -> None:
+    """A textured wall seen by a camera whose speed swings (8-frame period, up to 60 px a
+    frame), rows read over 0.8 of the frame interval, rendered row by row: two passes find the
+    readout from the motion alone and correct every frame from motion with it."""
+    rng = np.random.default_rng(5)
+    blocks = rng.integers(0, 255, (60, 400), dtype=np.uint8)
+    wall = np.repeat(np.repeat(blocks, 4, 0), 4, 1).astype(np.float64)
+    h, w, rho, amp = 240, 320, 0.8, 60.0 * 8 / (2 * np.pi)
+    cols = np.arange(w, dtype=np.float64)
+
+    def position(t: float) -> float:
+        return amp * (1.0 - np.cos(2 * np.pi * t / 8))  # content displacement, px
+
+    frames = []
+    for n in range(24):
+        frame = np.empty((h, w), np.uint8)
+        for y in range(h):
+            x = 600 + cols - position(n + rho * y / h)
+            frame[y] = np.interp(x, np.arange(wall.shape[1]), wall[y]).round().astype(np.uint8)
+        frames.append(frame)
+    video = unshear.VideoCorrector(fps=30)
+    for f in frames:
+        video.analyse(f)
+    with pytest.raises(ValueError, match="analyse"):
+        video.push(frames[0])
+    with pytest.raises(ValueError, match="end_analysis"):
+        video.replay(frames[0])
+    found = video.end_analysis()
+    assert found is not None and abs(found - rho) <= 0.05 * rho, found
+    out = [video.replay(f) for f in frames]
+    assert all(f.k_source == "motion" and f.readout_fraction == found for f in out)
+    assert video.finish() == []

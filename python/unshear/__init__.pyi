@@ -399,6 +399,16 @@ class VideoCorrector:
         """Takes the next frame; returns the frame now due, corrected (zero or one)."""
     def finish(self) -> list[Frame]:
         """Ends the stream: every frame still held, corrected. Later pushes raise."""
+    def analyse(self, frame: ImageLike) -> None:
+        """First of two passes over a clip that can be read twice: analyses the next frame
+        and keeps its results, not its pixels (instead of ``push``)."""
+    def end_analysis(self) -> float | None:
+        """Ends the first pass: returns the readout fraction fitted over the whole clip
+        (``None`` when it could not be found; the frames are then corrected from their
+        faces)."""
+    def replay(self, frame: ImageLike) -> Frame:
+        """Second pass: the next frame again, in order, corrected with what the first pass
+        found."""
 
 def options() -> list[dict[str, Any]]:
     """The settings ``Unshear(**config)`` and ``VideoCorrector(**config)`` take, one dict each:
