@@ -34,7 +34,7 @@ use unshear::video::y4m::{Y4mReader, Y4mWriter};
 use unshear::video::TrackerParams;
 use unshear::video::{
     run, Chroma, FrameResult, FrameSink, FrameSource, KSource, ProcessOptions, RunStats,
-    ShearSource, VideoFormat, VideoProcessor,
+    ShearSource, VideoFormat, VideoFrame, VideoProcessor,
 };
 use unshear::video::{Calibration, FilterParams};
 
@@ -273,6 +273,15 @@ struct Opened {
     expected: Option<u64>,
     /// A container input: its path and probe.
     container: Option<(PathBuf, Probe)>,
+}
+
+/// The frames of a first pass, held in memory for the second.
+struct HeldFrames(std::vec::IntoIter<VideoFrame>);
+
+impl FrameSource for HeldFrames {
+    fn next_frame(&mut self) -> unshear::Result<Option<VideoFrame>> {
+        Ok(self.0.next())
+    }
 }
 
 /// The input read again from the start, for the second of two passes (a file, not a pipe).
@@ -605,7 +614,8 @@ fn video_or_calibrate(a: VideoArgs, calibrate: Option<bool>) -> Result<bool> {
     let mut processor = VideoProcessor::new(&unshear, options);
     if let Some(json) = calibrate {
         let mut progress = Progress::new(expected, "unshear calibrate");
-        let frames = unshear::video::analyse(source.as_mut(), &mut processor, || progress.frame())?;
+        let frames =
+            unshear::video::analyse(source.as_mut(), &mut processor, |_| progress.frame())?;
         progress.finish();
         return Ok(print_calibration(
             processor.calibration(),
@@ -653,10 +663,25 @@ fn video_or_calibrate(a: VideoArgs, calibrate: Option<bool>) -> Result<bool> {
     if two_pass {
         let mut first = Progress::new(expected, "unshear video: analysing");
         let start = std::time::Instant::now();
-        unshear::video::analyse(source.as_mut(), &mut processor, || first.frame())?;
+        // A video file's frames, when they fit in the calibration's memory budget, are held
+        // rather than decoded again (a y4m file or a folder is cheaper to read again than to
+        // hold).
+        let mut held = container.is_some().then(Vec::new);
+        let mut bytes = 0u64;
+        unshear::video::analyse(source.as_mut(), &mut processor, |frame| {
+            first.frame();
+            bytes += frame_bytes;
+            match held.as_mut() {
+                Some(frames) if bytes <= CALIBRATION_HOLD_BYTES => frames.push(frame),
+                _ => held = None,
+            }
+        })?;
         first.finish();
         analysed = start.elapsed().as_secs_f64();
-        source = reopen_input(&a, ffmpeg.as_ref(), decode.as_ref())?.source;
+        source = match held {
+            Some(frames) => Box::new(HeldFrames(frames.into_iter())),
+            None => reopen_input(&a, ffmpeg.as_ref(), decode.as_ref())?.source,
+        };
     }
     let mut progress = Progress::new(expected, "unshear video");
     let mut frames_with_faces = 0u64;

@@ -18,7 +18,7 @@ use super::readout::{
     VelocityCurve, VelocitySample,
 };
 use super::temporal::{FilterParams, ShearSmoother, Update, DEFAULT_SMOOTHING_LAG};
-use super::timing::{readout_from_motion, BandReading};
+use super::timing::{readout_from_motion, BandReading, MotionTiming};
 use super::tracker::{FaceTracker, TrackerParams, TrackerStats};
 use super::VideoFrame;
 use crate::locate::network::Budget;
@@ -287,6 +287,8 @@ pub struct VideoProcessor<'a> {
     /// Every band displacement measured (up to [`MAX_TIMING_PAIRS`] frame pairs), for the
     /// readout from the motion alone.
     motion_bands: Vec<BandReading>,
+    /// The frame pairs the last search of the readout from the motion saw, and what it found.
+    timing: (usize, Option<MotionTiming>),
     /// The frame size of a first pass ([`Self::analyse_frame`]).
     analysed_size: Option<(u32, u32)>,
     counts: SourceCounts,
@@ -320,6 +322,7 @@ impl<'a> VideoProcessor<'a> {
             anchors: SceneAnchors::default(),
             analysed_size: None,
             motion_bands: Vec::new(),
+            timing: (0, None),
             counts: SourceCounts::default(),
         }
     }
@@ -712,7 +715,8 @@ impl<'a> VideoProcessor<'a> {
         let faces = self.fit_faces();
         // The motion alone tells the readout when the speed changes within the readouts; a
         // steady pan leaves it wide open (then the faces decide).
-        let motion = readout_from_motion(&self.motion_bands, self.height)
+        let motion = self
+            .motion_timing()
             .filter(|m| m.uncertainty.is_finite() && m.uncertainty < 0.5 * m.readout_fraction);
         let fit = match (faces, motion) {
             (f, None) => f,
@@ -745,6 +749,19 @@ impl<'a> VideoProcessor<'a> {
             }
         }
         self.fit = fit;
+    }
+
+    /// The readout from the motion alone, searched again only when the clip has grown by a
+    /// fifth (and 8 frame pairs) since the last search: the search visits every frame pair.
+    fn motion_timing(&mut self) -> Option<MotionTiming> {
+        let pairs = self.motion_bands.len() / 8;
+        let (searched, last) = self.timing;
+        if searched == 0 || pairs >= searched + (searched / 5).max(8) {
+            let found = readout_from_motion(&self.motion_bands, self.height);
+            self.timing = (pairs, found);
+            return found;
+        }
+        last
     }
 
     /// The readout fitted to the faces' readings alone (see [`Self::refit`]). Their rates depend
@@ -866,7 +883,9 @@ impl<'a> VideoProcessor<'a> {
         for p in self.pending.iter_mut().filter(|p| p.smoothed.is_none()) {
             p.smoothed = ks.next().or(Some(p.result.k_causal));
         }
-        if self.motion_model() && !self.readings.is_empty() {
+        if self.motion_model() {
+            // Over every frame pair, whatever the last search saw.
+            self.timing = (0, None);
             self.refit();
         }
         // Nothing is held in the second pass.
@@ -1161,7 +1180,8 @@ pub fn run(
 }
 
 /// The first of two passes over a clip: analyses every frame of `source` (see
-/// [`VideoProcessor::analyse_frame`]), calling `on_frame` after each, and ends the analysis;
+/// [`VideoProcessor::analyse_frame`]), handing each to `on_frame` after it (to count it, or to
+/// keep it for the second pass when the clip is short enough to hold), and ends the analysis;
 /// returns the frames analysed. [`replay`] is the second pass.
 ///
 /// # Errors
@@ -1169,14 +1189,15 @@ pub fn run(
 pub fn analyse(
     source: &mut dyn FrameSource,
     processor: &mut VideoProcessor<'_>,
-    mut on_frame: impl FnMut(),
+    mut on_frame: impl FnMut(VideoFrame),
 ) -> Result<usize> {
     let (tx, rx) = mpsc::sync_channel::<Result<VideoFrame>>(QUEUE);
     std::thread::scope(|scope| -> Result<()> {
         scope.spawn(move || read_into(source, tx));
         for item in rx {
-            processor.analyse_frame(&item?);
-            on_frame();
+            let frame = item?;
+            processor.analyse_frame(&frame);
+            on_frame(frame);
         }
         Ok(())
     })?;

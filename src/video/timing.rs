@@ -122,7 +122,7 @@ fn best_fit(
     if n < 16 {
         return None;
     }
-    let step = 0.025;
+    let step = 0.05;
     let (best, _) = (0..)
         .map(|i| RHO_RANGE.0 + step * f64::from(i))
         .take_while(|&r| r <= RHO_RANGE.1 + 1e-9)
@@ -133,7 +133,7 @@ fn best_fit(
         (best + step).min(RHO_RANGE.1),
     );
     let g = (5f64.sqrt() - 1.0) / 2.0;
-    for _ in 0..24 {
+    for _ in 0..20 {
         let (a, b) = (hi - g * (hi - lo), lo + g * (hi - lo));
         if cost(a) < cost(b) {
             hi = b;
