@@ -410,7 +410,7 @@ impl<'a> VideoProcessor<'a> {
         if self.motion_model()
             && self.options.readout_fraction.is_none()
             && index >= 4
-            && index % if self.rho.is_none() { 5 } else { 30 } == 0
+            && index.is_multiple_of(if self.rho.is_none() { 5 } else { 30 })
         {
             self.height = height;
             self.refit();
