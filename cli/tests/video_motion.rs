@@ -12,7 +12,8 @@ use unshear::dev::simulate::{FrameTruth, Profile, Scene, ScenePhoto, SimulationP
 use unshear::video::color::image_to_yuv;
 use unshear::video::y4m::Y4mWriter;
 use unshear::video::{
-    Chroma, FrameResult, ProcessOptions, ShearSource, VideoFormat, VideoFrame, VideoProcessor,
+    Calibration, Chroma, FrameResult, ProcessOptions, ShearSource, VideoFormat, VideoFrame,
+    VideoProcessor,
 };
 use unshear::{Config, Unshear};
 
@@ -100,6 +101,30 @@ fn run(
     (out.into_iter().map(|(_, r)| r).collect(), rho)
 }
 
+/// Two passes over `frames` (as `unshear video` reads a file): every frame's result, with the
+/// calibration and the readout in use after the first pass.
+fn two_passes(
+    unshear: &Unshear,
+    frames: &[VideoFrame],
+) -> (Vec<FrameResult>, Option<Calibration>, Option<f64>) {
+    let options = ProcessOptions {
+        network_budget: unshear.config().network_budget,
+        ..ProcessOptions::default()
+    };
+    let mut p = VideoProcessor::new(unshear, options);
+    for f in frames {
+        p.analyse_frame(f);
+    }
+    assert_eq!(p.end_analysis(), frames.len());
+    let (calibration, rho) = (p.calibration(), p.readout_fraction());
+    let results = frames
+        .iter()
+        .map(|f| p.replay(f.clone()).expect("replay").1)
+        .collect();
+    assert!(p.replay(frames[0].clone()).is_err(), "one frame too many");
+    (results, calibration, rho)
+}
+
 /// Share of `results` (from `skip` on) whose `k` is within `tol` of the truth.
 fn share_within(results: &[FrameResult], truth: &[FrameTruth], skip: usize, tol: f64) -> f64 {
     let scored: Vec<bool> = results
@@ -159,22 +184,8 @@ fn two_passes_correct_every_frame_with_the_clips_readout() {
     let rho = 0.8;
     let v = 0.25 * f64::from(H) / rho;
     let (frames, truth) = render(faces_scene(), params(Profile::Pause { v }, rho, 72));
-    let unshear = video_unshear();
-    let options = ProcessOptions {
-        network_budget: unshear.config().network_budget,
-        ..ProcessOptions::default()
-    };
-    let mut p = VideoProcessor::new(&unshear, options);
-    for f in &frames {
-        p.analyse_frame(f);
-    }
-    assert_eq!(p.end_analysis(), frames.len());
-    let found = p.readout_fraction().expect("the readout was calibrated");
-    let results: Vec<FrameResult> = frames
-        .iter()
-        .map(|f| p.replay(f.clone()).expect("replay").1)
-        .collect();
-    assert!(p.replay(frames[0].clone()).is_err(), "one frame too many");
+    let (results, _, found) = two_passes(&video_unshear(), &frames);
+    let found = found.expect("the readout was calibrated");
     let within = share_within(&results, &truth, 0, 0.01);
     eprintln!("two passes: readout fraction {found:.4} (true {rho}); k within 0.01: {within:.3}");
     assert!((found - rho).abs() <= 0.03 * rho, "rho {found}");
@@ -198,26 +209,13 @@ fn a_shake_without_faces_calibrates_from_the_motion_alone() {
         Scene::textured(1600, H, 4),
         params(Profile::Shaky { v, seed: 3 }, rho, 48),
     );
-    let unshear = video_unshear();
-    let options = ProcessOptions {
-        network_budget: unshear.config().network_budget,
-        ..ProcessOptions::default()
-    };
-    let mut p = VideoProcessor::new(&unshear, options);
-    for f in &frames {
-        p.analyse_frame(f);
-    }
-    p.end_analysis();
-    let c = p.calibration().expect("calibrated");
+    let (results, c, used) = two_passes(&video_unshear(), &frames);
+    let c = c.expect("calibrated");
     eprintln!("readout from the motion alone: {c:?} (true {rho})");
     assert_eq!(c.samples, 0, "no face");
     assert!(c.motion_pairs >= 8, "{c:?}");
     assert!((c.readout_fraction - rho).abs() <= 0.03 * rho, "{c:?}");
-    assert_eq!(p.readout_fraction(), Some(c.readout_fraction));
-    let results: Vec<FrameResult> = frames
-        .iter()
-        .map(|f| p.replay(f.clone()).expect("replay").1)
-        .collect();
+    assert_eq!(used, Some(c.readout_fraction));
     assert!(results.iter().all(|r| r.k_source == ShearSource::Motion));
     let within = share_within(&results, &truth, 0, 0.01);
     assert!(within >= 0.95, "{within}");

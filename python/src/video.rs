@@ -17,7 +17,7 @@ use unshear::Readout;
 
 use crate::args;
 use crate::config::{build, PyConfig, Use};
-use crate::image::{from_array, to_array, Layout};
+use crate::image::{from_array, to_array, Input, Layout};
 use crate::report::{faces, from_state, state, Face};
 use crate::{interp_of, to_pyerr};
 
@@ -250,6 +250,18 @@ fn bad(message: String) -> PyErr {
 }
 
 impl VideoCorrector {
+    /// A pushed array as an image, and its shape.
+    fn frame_in(&self, py: Python<'_>, frame: &Bound<'_, PyAny>) -> PyResult<(Input, Shape)> {
+        let input = from_array(py, frame, self.bgr, self.max_pixels)?;
+        let shape = Shape {
+            width: input.image.width(),
+            height: input.image.height(),
+            color: input.image.color(),
+            layout: input.layout,
+        };
+        Ok((input, shape))
+    }
+
     fn lock(&self) -> PyResult<std::sync::MutexGuard<'_, State>> {
         self.state
             .lock()
@@ -395,13 +407,7 @@ impl VideoCorrector {
     /// Takes the next frame; returns the frame now due (``smoothing_lag`` frames older),
     /// corrected, as a list of zero or one ``Frame``.
     fn push(&self, py: Python<'_>, frame: &Bound<'_, PyAny>) -> PyResult<Vec<Frame>> {
-        let input = from_array(py, frame, self.bgr, self.max_pixels)?;
-        let shape = Shape {
-            width: input.image.width(),
-            height: input.image.height(),
-            color: input.image.color(),
-            layout: input.layout,
-        };
+        let (input, shape) = self.frame_in(py, frame)?;
         let out = py.detach(|| -> PyResult<_> {
             let mut state = self.lock()?;
             state.admit(shape, Phase::Pushing)?;
@@ -418,13 +424,7 @@ impl VideoCorrector {
     /// After the last frame, ``end_analysis()``; then the same frames again through
     /// ``replay()``.
     fn analyse(&self, py: Python<'_>, frame: &Bound<'_, PyAny>) -> PyResult<()> {
-        let input = from_array(py, frame, self.bgr, self.max_pixels)?;
-        let shape = Shape {
-            width: input.image.width(),
-            height: input.image.height(),
-            color: input.image.color(),
-            layout: input.layout,
-        };
+        let (input, shape) = self.frame_in(py, frame)?;
         py.detach(|| -> PyResult<()> {
             let mut state = self.lock()?;
             state.admit(shape, Phase::Analysing)?;
@@ -458,13 +458,7 @@ impl VideoCorrector {
     /// The second pass: the next frame of the clip, in the order analysed, corrected with what
     /// the first pass found.
     fn replay(&self, py: Python<'_>, frame: &Bound<'_, PyAny>) -> PyResult<Frame> {
-        let input = from_array(py, frame, self.bgr, self.max_pixels)?;
-        let shape = Shape {
-            width: input.image.width(),
-            height: input.image.height(),
-            color: input.image.color(),
-            layout: input.layout,
-        };
+        let (input, shape) = self.frame_in(py, frame)?;
         let out = py.detach(|| -> PyResult<_> {
             let mut state = self.lock()?;
             state.admit(shape, Phase::Replaying)?;
