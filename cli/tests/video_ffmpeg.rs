@@ -769,7 +769,11 @@ fn ffmpeg_dying_half_way_leaves_nothing() {
         ("encoder", "yuv4mpegpipe -i -", "encoding"),
     ] {
         let out = dir.path().join("out.mp4");
-        let (child, mut stdout, _) = start_json(&clip, &out);
+        // In one pass, so that the decoder is still running when frames come out (in two
+        // passes a short clip's frames are held from the first, whose decoder has ended).
+        let (child, mut stdout, _) = common::spawn_and_read_first_line(
+            video_cmd(&clip, &out).args(["--json", "--one-pass"]),
+        );
         let targets = processes_with(&needle, marker);
         assert_eq!(targets.len(), 1, "{victim}: {targets:?}");
         kill("-KILL", targets[0].0);
