@@ -668,7 +668,7 @@ impl<'a> VideoProcessor<'a> {
                 (Some(a), None) | (None, Some(a)) => a.0,
                 (None, None) => continue,
             };
-            let still = background.is_some_and(|b| (own - b).abs() <= 3.0 + 0.1 * b.abs());
+            let still = background.is_some_and(|b| moves_with(own, b));
             let track = if still {
                 self.anchors.identify(p.track, p.place, p.eye_distance)
             } else {
@@ -819,7 +819,7 @@ impl<'a> VideoProcessor<'a> {
         // What the face's own central difference measures of the curve: the mean of its two
         // displacements.
         let background = (curve.mean_velocity(t - 0.5).0 + curve.mean_velocity(t + 0.5).0) / 2.0;
-        if (r.own_velocity - background).abs() <= 3.0 + 0.1 * background.abs() {
+        if moves_with(r.own_velocity, background) {
             curve.velocity(t).0
         } else {
             r.own_velocity
@@ -836,12 +836,7 @@ impl<'a> VideoProcessor<'a> {
     pub fn process(&mut self, frame: VideoFrame) -> Result<Vec<(VideoFrame, FrameResult)>> {
         let (mut entry, due) = self.analyse(&frame.luma());
         entry.frame = frame;
-        self.pending.push_back(entry);
-        if let Some(k) = due {
-            if let Some(p) = self.pending.iter_mut().find(|p| p.smoothed.is_none()) {
-                p.smoothed = Some(k);
-            }
-        }
+        self.queue(entry, due);
         self.drain(false)
     }
 
@@ -851,12 +846,27 @@ impl<'a> VideoProcessor<'a> {
     /// # Errors
     /// As [`Self::process`].
     pub fn finish(&mut self) -> Result<Vec<(VideoFrame, FrameResult)>> {
-        let ks = self.smoother.flush();
-        let mut ks = ks.into_iter();
+        self.flush_smoother();
+        self.drain(true)
+    }
+
+    /// Queues an analysed frame, giving the oldest frame not smoothed yet its smoothed `k`
+    /// when the smoother has it (`due`).
+    fn queue(&mut self, entry: Pending, due: Option<f64>) {
+        self.pending.push_back(entry);
+        if let Some(k) = due {
+            if let Some(p) = self.pending.iter_mut().find(|p| p.smoothed.is_none()) {
+                p.smoothed = Some(k);
+            }
+        }
+    }
+
+    /// The end of the stream for the smoother: every queued frame gets its smoothed `k`.
+    fn flush_smoother(&mut self) {
+        let mut ks = self.smoother.flush().into_iter();
         for p in self.pending.iter_mut().filter(|p| p.smoothed.is_none()) {
             p.smoothed = ks.next().or(Some(p.result.k_causal));
         }
-        self.drain(true)
     }
 
     /// The first of two passes over a clip (a file can be read twice): analyses one frame
@@ -866,23 +876,14 @@ impl<'a> VideoProcessor<'a> {
     pub fn analyse_frame(&mut self, frame: &VideoFrame) {
         self.analysed_size.get_or_insert(frame.dimensions());
         let (entry, due) = self.analyse(&frame.luma());
-        self.pending.push_back(entry);
-        if let Some(k) = due {
-            if let Some(p) = self.pending.iter_mut().find(|p| p.smoothed.is_none()) {
-                p.smoothed = Some(k);
-            }
-        }
+        self.queue(entry, due);
     }
 
     /// The end of the first pass: every frame's `k` smoothed over the whole clip and the
     /// readout fitted to every reading of it, so that the second pass corrects every frame
     /// with the clip's readout (when it was found). Returns the frames analysed.
     pub fn end_analysis(&mut self) -> usize {
-        let ks = self.smoother.flush();
-        let mut ks = ks.into_iter();
-        for p in self.pending.iter_mut().filter(|p| p.smoothed.is_none()) {
-            p.smoothed = ks.next().or(Some(p.result.k_causal));
-        }
+        self.flush_smoother();
         if self.motion_model() {
             // Over every frame pair, whatever the last search saw.
             self.timing = (0, None);
@@ -1110,6 +1111,12 @@ impl<'a> VideoProcessor<'a> {
         };
         Ok((corrected, result))
     }
+}
+
+/// Whether a face whose own velocity is `own` moves with content moving at `background`
+/// (pixels per frame): within 3 px and 10%, what the eyes' displacement is measured to.
+fn moves_with(own: f64, background: f64) -> bool {
+    (own - background).abs() <= 3.0 + 0.1 * background.abs()
 }
 
 /// `stored` turned as a player shows it, `rotation` degrees counter-clockwise (see
