@@ -58,6 +58,7 @@
 
 pub mod annotate;
 pub mod config;
+pub mod deblur;
 pub mod detect;
 #[cfg(feature = "dev")]
 pub mod dev;

@@ -851,8 +851,46 @@ pub struct VideoArgs {
         default_value_t = unshear::video::DEFAULT_CALIBRATION_WINDOW
     )]
     pub calibration_window: usize,
+    /// Remove the motion blur along the rows of the frames corrected from motion: each row is
+    /// smeared by its image velocity times the exposure (needs --exposure or --exposure-ms).
+    #[arg(help_heading = "Motion blur", long)]
+    pub deblur: bool,
+    /// Each row's exposure as a fraction of the frame interval, in (0, 1] (for --deblur).
+    #[arg(
+        help_heading = "Motion blur",
+        long,
+        value_name = "FRACTION",
+        value_parser = exposure_fraction,
+        conflicts_with = "exposure_ms"
+    )]
+    pub exposure: Option<f64>,
+    /// Each row's exposure in milliseconds (for --deblur; 4 is 1/250 s).
+    #[arg(
+        help_heading = "Motion blur",
+        long,
+        value_name = "MS",
+        value_parser = positive_f64
+    )]
+    pub exposure_ms: Option<f64>,
+    /// The deblurring's noise-to-signal ratio: larger is smoother and rings less, smaller
+    /// restores more detail and more noise.
+    #[arg(
+        help_heading = "Motion blur",
+        long,
+        value_name = "RATIO",
+        value_parser = positive_f64,
+        default_value_t = unshear::deblur::DEFAULT_NOISE_TO_SIGNAL
+    )]
+    pub deblur_noise: f64,
     #[command(flatten)]
     pub model: ModelArgs,
+}
+
+fn exposure_fraction(s: &str) -> Result<f64, String> {
+    let v: f64 = s.parse().map_err(|e| format!("{e}"))?;
+    unshear::video::Deblur::new(v)
+        .map(|d| d.exposure)
+        .map_err(|e| e.to_string())
 }
 
 /// `unshear calibrate`.

@@ -60,6 +60,8 @@ struct JsonFrame {
     velocity: Option<[f64; 2]>,
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     faces_disagree: bool,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    blur: Option<f64>,
     faces: Vec<JsonVideoFace>,
 }
 
@@ -82,6 +84,7 @@ fn json_line(r: &FrameResult) -> String {
         readout_fraction: r.readout_fraction.map(r4),
         velocity: r.velocity.map(|[x, y]| [r2(x), r2(y)]),
         faces_disagree: r.faces_disagree,
+        blur: r.blur.map(r2),
         faces: r
             .faces
             .iter()
@@ -577,6 +580,26 @@ fn video_or_calibrate(a: VideoArgs, calibrate: Option<bool>) -> Result<bool> {
         }
         (None, None) => None,
     };
+    let deblur = match (a.deblur, a.exposure, a.exposure_ms) {
+        (false, _, _) => None,
+        (true, Some(e), _) => Some(e),
+        (true, None, Some(ms)) => Some(ms * fps / 1000.0),
+        (true, None, None) => usage_error(
+            "--deblur needs the exposure: --exposure FRACTION (of the frame interval) or \
+             --exposure-ms MS",
+        ),
+    }
+    .map(|e| {
+        let d = unshear::video::Deblur::new(e).unwrap_or_else(|_| {
+            usage_error(&format!(
+                "an exposure of {e:.3} frame intervals at {fps:.3} frames/s is outside (0, 1]"
+            ))
+        });
+        unshear::video::Deblur {
+            noise_to_signal: a.deblur_noise,
+            ..d
+        }
+    });
     let frame_bytes = format.frame_bytes().max(1);
     let calibration_window = a
         .calibration_window
@@ -608,6 +631,7 @@ fn video_or_calibrate(a: VideoArgs, calibrate: Option<bool>) -> Result<bool> {
         vertical: a.vertical,
         region: a.region.into(),
         calibration_window,
+        deblur,
         ..ProcessOptions::default()
     };
     let rotation = options.rotation;

@@ -82,6 +82,16 @@ pub fn readout_fraction(value: &Bound<'_, PyAny>) -> PyResult<Option<f64>> {
         .map_err(|e| PyValueError::new_err(e.to_string()))
 }
 
+pub fn deblur_exposure(value: &Bound<'_, PyAny>) -> PyResult<Option<f64>> {
+    if value.is_none() {
+        return Ok(None);
+    }
+    let x = real("deblur_exposure", value)?;
+    unshear::video::Deblur::new(x)
+        .map(|d| Some(d.exposure))
+        .map_err(|e| PyValueError::new_err(e.to_string()))
+}
+
 pub fn hold(value: &Bound<'_, PyAny>) -> PyResult<f64> {
     let x = real("hold", value)?;
     if !(x.is_finite() && x >= 0.0) {

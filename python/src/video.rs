@@ -170,6 +170,13 @@ impl Frame {
         self.result.velocity.map(|[x, y]| (x, y))
     }
 
+    /// The motion blur removed at the middle row, pixels (``deblur_exposure``; frames corrected
+    /// from motion only), or ``None``.
+    #[getter]
+    fn blur(&self) -> Option<f64> {
+        self.result.blur
+    }
+
     /// The frame's line of ``unshear video --json`` as a dict (``frame``, ``k_raw``, ``k``,
     /// ``faces``), not rounded.
     fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
@@ -180,6 +187,9 @@ impl Frame {
         d.set_item("k_source", source_name(self.result.k_source))?;
         d.set_item("readout_fraction", self.result.readout_fraction)?;
         d.set_item("velocity", self.velocity())?;
+        if let Some(b) = self.result.blur {
+            d.set_item("blur", b)?;
+        }
         let list = PyList::empty(py);
         for f in self.faces() {
             list.append(f.to_dict(py)?)?;
@@ -307,6 +317,7 @@ impl VideoCorrector {
         readout_fraction = None,
         motion = true,
         vertical = false,
+        deblur_exposure = None,
         correct = true,
         bgr = false,
         max_pixels = DEFAULT_MAX_PIXELS,
@@ -328,6 +339,7 @@ impl VideoCorrector {
         #[pyo3(from_py_with = args::readout_fraction)] readout_fraction: Option<f64>,
         motion: bool,
         vertical: bool,
+        #[pyo3(from_py_with = args::deblur_exposure)] deblur_exposure: Option<f64>,
         correct: bool,
         bgr: bool,
         #[pyo3(from_py_with = args::max_pixels)] max_pixels: u64,
@@ -376,6 +388,7 @@ impl VideoCorrector {
             readout_fraction,
             motion,
             vertical,
+            deblur: deblur_exposure.and_then(|e| unshear::video::Deblur::new(e).ok()),
             ..ProcessOptions::default()
         };
         let stream = Stream::new(unshear, |u| VideoProcessor::new(u, options));

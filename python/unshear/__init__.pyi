@@ -316,6 +316,9 @@ class Frame:
     @property
     def velocity(self) -> tuple[float, float] | None:
         """The image velocity ``(vx, vy)`` at the middle row's time, pixels per frame."""
+    @property
+    def blur(self) -> float | None:
+        """The motion blur removed at the middle row, pixels (``deblur_exposure``)."""
     def to_dict(self) -> dict[str, Any]:
         """The frame's line of ``unshear video --json`` (``frame``, ``k_raw``, ``k``,
         ``k_source``, ``readout_fraction``, ``velocity``,
@@ -345,6 +348,9 @@ class VideoCorrector:
     from the image motion measured between frames, ``k = readout_fraction * v / H``, with a
     per-row offset when the pan changes speed during the readout; ``motion=False`` keeps the
     faces alone, ``vertical=True`` also undoes vertical motion's stretch.
+    ``deblur_exposure`` (each row's exposure over the frame interval, in (0, 1]; 4 ms at 30
+    frames/s is 0.12) also removes the motion blur along the rows of frames corrected from
+    motion: each row's image velocity times the exposure.
 
     ``readout="columns"`` is for frames turned upright from a clip recorded turned a quarter
     (a phone held upright; OpenCV turns them so): read out along their columns, their ``k`` is
@@ -367,6 +373,7 @@ class VideoCorrector:
         readout_fraction: float | None = None,
         motion: bool = True,
         vertical: bool = False,
+        deblur_exposure: float | None = None,
         correct: bool = True,
         bgr: bool = False,
         max_pixels: int = ...,

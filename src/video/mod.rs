@@ -71,8 +71,8 @@ pub mod y4m;
 
 pub use motion::MotionParams;
 pub use process::{
-    analyse, replay, run, FrameResult, FrameSink, FrameSource, KSource, ProcessOptions, RunStats,
-    ShearSource, SourceCounts, VideoProcessor, DEFAULT_CALIBRATION_WINDOW,
+    analyse, replay, run, Deblur, FrameResult, FrameSink, FrameSource, KSource, ProcessOptions,
+    RunStats, ShearSource, SourceCounts, VideoProcessor, DEFAULT_CALIBRATION_WINDOW,
 };
 pub use readout::{check_readout_fraction, Calibration, CalibrationParams, MAX_READOUT_FRACTION};
 pub use temporal::{FilterParams, Update, DEFAULT_SMOOTHING_LAG};
@@ -420,6 +420,64 @@ impl VideoFrame {
 }
 
 impl VideoFrame {
+    /// Removes a horizontal motion blur of `lengths[y]` pixels from each (luma) row
+    /// ([`crate::deblur::deblur_rows`], Wiener filter with `noise_to_signal`); chroma planes
+    /// take their rows' lengths over their horizontal subsampling. Floating-point images are
+    /// returned as they are.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] when `lengths.len()` is not the height, a length is not
+    /// finite or `noise_to_signal` is not positive.
+    pub fn deblur_rows(self, lengths: &[f64], noise_to_signal: f64) -> Result<VideoFrame> {
+        use crate::deblur::deblur_rows as rows;
+        warp::check_rows(lengths, self.dimensions().1, "blur length")?;
+        let nsr = noise_to_signal;
+        fn planes<T: YuvSample + crate::deblur::Sample>(
+            f: &mut YuvFrame<T>,
+            lengths: &[f64],
+            nsr: f64,
+        ) -> Result<()> {
+            let max = ((1u32 << f.bit_depth) - 1) as f32;
+            let w = f.y.width() as usize;
+            rows(&mut f.y, w, 1, lengths, nsr, max)?;
+            if f.chroma != Chroma::Mono {
+                let hs = f64::from(f.chroma.subsampling().0);
+                let cl = chroma_rows(f.chroma, f.u.height(), lengths, |l| l / hs);
+                let cw = f.u.width() as usize;
+                rows(&mut f.u, cw, 1, &cl, nsr, max)?;
+                rows(&mut f.v, cw, 1, &cl, nsr, max)?;
+            }
+            Ok(())
+        }
+        Ok(match self {
+            VideoFrame::Yuv(mut f) => {
+                planes(&mut f, lengths, nsr)?;
+                VideoFrame::Yuv(f)
+            }
+            VideoFrame::Yuv16(mut f) => {
+                planes(&mut f, lengths, nsr)?;
+                VideoFrame::Yuv16(f)
+            }
+            VideoFrame::Image(mut img) => {
+                let w = img.width() as usize;
+                let c = usize::from(img.color().channel_count());
+                let (u8_max, u16_max) = (255.0, 65535.0);
+                match &mut img {
+                    DynamicImage::ImageLuma8(b) => rows(b, w, c, lengths, nsr, u8_max)?,
+                    DynamicImage::ImageLumaA8(b) => rows(b, w, c, lengths, nsr, u8_max)?,
+                    DynamicImage::ImageRgb8(b) => rows(b, w, c, lengths, nsr, u8_max)?,
+                    DynamicImage::ImageRgba8(b) => rows(b, w, c, lengths, nsr, u8_max)?,
+                    DynamicImage::ImageLuma16(b) => rows(b, w, c, lengths, nsr, u16_max)?,
+                    DynamicImage::ImageLumaA16(b) => rows(b, w, c, lengths, nsr, u16_max)?,
+                    DynamicImage::ImageRgb16(b) => rows(b, w, c, lengths, nsr, u16_max)?,
+                    DynamicImage::ImageRgba16(b) => rows(b, w, c, lengths, nsr, u16_max)?,
+                    _ => {}
+                }
+                VideoFrame::Image(img)
+            }
+        })
+    }
+
     /// De-shears each face region by its own shear, the rest untouched (a subject moving in
     /// front of a still camera): `regions` holds each region (in luma pixels, already enlarged)
     /// and its `k`, undone about the region's middle row and feathered into its surroundings as

@@ -277,6 +277,9 @@ pub struct RowMotion {
     /// With vertical correction: the input row each output row is read from (content that moves
     /// down during the readout is spread over more rows); `None` without.
     pub sources: Option<Vec<f64>>,
+    /// Per row: the horizontal image velocity at its read time, pixels per frame (its motion
+    /// blur is this times the exposure).
+    pub row_velocities: Vec<f64>,
 }
 
 impl RowMotion {
@@ -303,11 +306,15 @@ impl RowMotion {
                 })
                 .collect()
         });
+        let row_velocities = (0..height)
+            .map(|y| curve.velocity(row_time(n, f64::from(y), rho, height)).0)
+            .collect();
         Self {
             k: rho * velocity.0 / h,
             velocity,
             shifts,
             sources,
+            row_velocities,
         }
     }
 

@@ -1,0 +1,408 @@
+//! Motion blur removed along the rows. A camera panning at `v` pixels per frame with each row
+//! exposed for `e` of the frame interval smears every row by a box `|v| e` pixels long, centred
+//! on the row's read time (issue 61). [`deblur_rows`] undoes it row by row with a 1-D Wiener
+//! deconvolution, `X = Y (1 + nsr) conj(H) / (|H|^2 + nsr)`, `H` the box's spectrum: the
+//! frequencies the box nearly removed are restored only as far as the noise allows, and the
+//! factor `1 + nsr` keeps the level of flat areas and slow gradients (where `H = 1`). (A
+//! regulariser growing with frequency, as constrained least squares uses, leaves a long box's
+//! first zeros, at low frequencies, unregularised: far worse on simulated pans.) Each row is mirrored
+//! out past both ends before its transform, so the frame's edges do not ring, and the result
+//! is clamped to the samples' range (a saturated highlight cannot ring into negative light).
+//!
+//! Real-input FFTs come from `realfft` (rustfft's real-to-complex wrapper); each thread plans
+//! once per padded length and keeps the box spectra it has used, so a frame's rows allocate
+//! nothing after the first.
+
+use std::collections::HashMap;
+use std::sync::Arc;
+
+use rayon::prelude::*;
+use realfft::num_complex::Complex32;
+use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
+
+use crate::{Error, Result};
+
+/// The Wiener filter's noise-to-signal ratio by default: how much of each frequency the box nearly removed is left unrestored. Chosen on simulated
+/// clips of development faces (docs/video.md, motion blur).
+pub const DEFAULT_NOISE_TO_SIGNAL: f64 = 0.02;
+
+/// Blur shorter than this (pixels) is left as it is: a box under a pixel long is what any
+/// resampling does.
+pub const MIN_BLUR: f64 = 1.0;
+
+/// The longest blur (pixels) undone: beyond it a row has lost too much to restore.
+pub const MAX_BLUR: f64 = 256.0;
+
+/// How long boxes are told apart (pixels): rows whose lengths round to the same multiple of
+/// this share one spectrum.
+const LENGTH_STEP: f64 = 0.125;
+
+/// A sample type the rows hold (8- or 16-bit).
+pub trait Sample: Copy + Send + Sync {
+    /// As a float.
+    fn to_f32(self) -> f32;
+    /// Rounded and clamped to `0..=max`.
+    fn from_f32(v: f32, max: f32) -> Self;
+}
+
+impl Sample for u8 {
+    fn to_f32(self) -> f32 {
+        f32::from(self)
+    }
+    fn from_f32(v: f32, max: f32) -> Self {
+        // Clamped first, so adding a half and truncating rounds (and inlines, unlike `round`).
+        (v.clamp(0.0, max.min(255.0)) + 0.5) as u8
+    }
+}
+
+impl Sample for u16 {
+    fn to_f32(self) -> f32 {
+        f32::from(self)
+    }
+    fn from_f32(v: f32, max: f32) -> Self {
+        (v.clamp(0.0, max.min(65535.0)) + 0.5) as u16
+    }
+}
+
+/// Removes a horizontal box blur from each row of an interleaved image: `data` holds rows of
+/// `width` pixels of `channels` samples, `lengths[y]` is row `y`'s blur in pixels (under
+/// [`MIN_BLUR`]: left alone), `noise_to_signal` the Wiener filter's ratio, `max` the largest
+/// sample value. Rows are done in parallel.
+///
+/// # Errors
+/// [`Error::InvalidArgument`] when `data` is not `lengths.len()` rows of `width * channels`
+/// samples, a length is not finite, or `noise_to_signal` is not positive.
+pub fn deblur_rows<T: Sample>(
+    data: &mut [T],
+    width: usize,
+    channels: usize,
+    lengths: &[f64],
+    noise_to_signal: f64,
+    max: f32,
+) -> Result<()> {
+    let stride = width * channels;
+    if stride == 0 || data.len() != stride * lengths.len() {
+        return Err(Error::InvalidArgument(format!(
+            "deblur: {} samples are not {} rows of {width} pixels x {channels} channels",
+            data.len(),
+            lengths.len()
+        )));
+    }
+    if let Some(l) = lengths.iter().find(|l| !l.is_finite()) {
+        return Err(Error::InvalidArgument(format!(
+            "deblur: blur length {l} is not finite"
+        )));
+    }
+    if !(noise_to_signal > 0.0 && noise_to_signal.is_finite()) {
+        return Err(Error::InvalidArgument(format!(
+            "deblur: the noise-to-signal ratio must be positive (got {noise_to_signal})"
+        )));
+    }
+    data.par_chunks_mut(stride)
+        .zip(lengths.par_iter())
+        .filter(|(_, l)| l.abs() >= MIN_BLUR)
+        .for_each(|(row, &length)| {
+            WIENER.with(|wiener| {
+                let wiener = &mut wiener.borrow_mut();
+                let length = length.abs().min(MAX_BLUR);
+                let nsr = noise_to_signal as f32;
+                if channels == 1 {
+                    // A plane's row: plain iteration (no stride to step over).
+                    wiener.load(row.iter().map(|s| s.to_f32()));
+                    wiener.deconvolve(length, nsr);
+                    for (s, &v) in row.iter_mut().zip(wiener.result()) {
+                        *s = T::from_f32(v, max);
+                    }
+                    return;
+                }
+                for c in 0..channels {
+                    wiener.load(row.iter().skip(c).step_by(channels).map(|s| s.to_f32()));
+                    wiener.deconvolve(length, nsr);
+                    for (s, &v) in row
+                        .iter_mut()
+                        .skip(c)
+                        .step_by(channels)
+                        .zip(wiener.result())
+                    {
+                        *s = T::from_f32(v, max);
+                    }
+                }
+            });
+        });
+    Ok(())
+}
+
+thread_local! {
+    /// Each thread's plans and spectra, kept from row to row and frame to frame.
+    static WIENER: std::cell::RefCell<RowWiener> = std::cell::RefCell::new(RowWiener::default());
+}
+
+/// A padded length's forward and inverse plans.
+type Plans = (Arc<dyn RealToComplex<f32>>, Arc<dyn ComplexToReal<f32>>);
+
+/// One thread's plans, spectra and buffers.
+#[derive(Default)]
+struct RowWiener {
+    planner: RealFftPlanner<f32>,
+    /// Per padded length: its plans.
+    plans: HashMap<usize, Plans>,
+    /// Per (padded length, length in steps): the box's spectrum.
+    spectra: HashMap<(usize, i64), Vec<Complex32>>,
+    row: Vec<f32>,
+    padded: Vec<f32>,
+    spectrum: Vec<Complex32>,
+    scratch: Vec<Complex32>,
+    /// Where the row starts in `padded`.
+    start: usize,
+}
+
+impl RowWiener {
+    fn load(&mut self, row: impl Iterator<Item = f32>) {
+        self.row.clear();
+        self.row.extend(row);
+    }
+
+    /// The row's samples after [`Self::deconvolve`].
+    fn result(&self) -> &[f32] {
+        &self.padded[self.start..self.start + self.row.len()]
+    }
+
+    fn plans(&mut self, n: usize) -> Plans {
+        let planner = &mut self.planner;
+        self.plans
+            .entry(n)
+            .or_insert_with(|| (planner.plan_fft_forward(n), planner.plan_fft_inverse(n)))
+            .clone()
+    }
+
+    /// Deconvolves the loaded row by a box `length` pixels long into `padded[start..]`.
+    fn deconvolve(&mut self, length: f64, nsr: f32) {
+        let w = self.row.len();
+        if w == 0 {
+            return;
+        }
+        // Mirrored out by twice the box on each side: what lies beyond the frame's edge blurs
+        // in as the edge's own content, not as a jump to black.
+        let pad = (2.0 * length).ceil() as usize + 8;
+        let n = fast_length(w + 2 * pad);
+        self.start = pad;
+        self.padded.clear();
+        let right = n - pad - w;
+        if pad < w && right < w {
+            // The mirrored ends copied as reversed slices (the edge sample not repeated).
+            self.padded.extend(self.row[1..=pad].iter().rev());
+            self.padded.extend_from_slice(&self.row);
+            self.padded
+                .extend(self.row[w - 1 - right..w - 1].iter().rev());
+        } else {
+            self.padded
+                .extend((0..n).map(|i| self.row[mirror(i as i64 - pad as i64, w)]));
+        }
+        let (forward, inverse) = self.plans(n);
+        let steps = (length / LENGTH_STEP).round() as i64;
+        let h = self
+            .spectra
+            .entry((n, steps))
+            .or_insert_with(|| box_spectrum(&*forward, n, steps as f64 * LENGTH_STEP));
+        self.spectrum.resize(n / 2 + 1, Complex32::default());
+        self.scratch
+            .resize(forward.get_scratch_len(), Complex32::default());
+        // The lengths match by construction; a failure would leave the row as it was loaded.
+        if forward
+            .process_with_scratch(&mut self.padded, &mut self.spectrum, &mut self.scratch)
+            .is_err()
+        {
+            return;
+        }
+        let gain = (1.0 + nsr) / n as f32;
+        for (y, h) in self.spectrum.iter_mut().zip(h.iter()) {
+            *y = *y * h.conj() * (gain / (h.norm_sqr() + nsr));
+        }
+        // The DC and Nyquist bins of a real signal's spectrum are real; rounding may leave a
+        // trace that the inverse refuses.
+        self.spectrum[0].im = 0.0;
+        if n.is_multiple_of(2) {
+            self.spectrum[n / 2].im = 0.0;
+        }
+        self.scratch
+            .resize(inverse.get_scratch_len(), Complex32::default());
+        if inverse
+            .process_with_scratch(&mut self.spectrum, &mut self.padded, &mut self.scratch)
+            .is_err()
+        {
+            self.padded.clear();
+            self.padded.resize(self.start, 0.0);
+            self.padded.extend_from_slice(&self.row);
+        }
+    }
+}
+
+/// The spectrum (`n / 2 + 1` bins) of a box `length` pixels long centred on 0, laid out
+/// circularly over `n` samples: tap `j` weighs the part of `[j - 1/2, j + 1/2]` inside
+/// `[-length/2, length/2]`, over `length`.
+fn box_spectrum(forward: &dyn RealToComplex<f32>, n: usize, length: f64) -> Vec<Complex32> {
+    let half = length / 2.0;
+    let mut taps = vec![0.0f32; n];
+    let reach = half.ceil() as i64;
+    for j in -reach..=reach {
+        let lo = (j as f64 - 0.5).max(-half);
+        let hi = (j as f64 + 0.5).min(half);
+        if hi > lo {
+            taps[j.rem_euclid(n as i64) as usize] += ((hi - lo) / length) as f32;
+        }
+    }
+    let mut spectrum = vec![Complex32::default(); n / 2 + 1];
+    if forward.process(&mut taps, &mut spectrum).is_err() {
+        // Lengths match by construction; an identity keeps the row as it is.
+        spectrum.fill(Complex32::new(1.0, 0.0));
+    }
+    spectrum
+}
+
+/// Index `i` mirrored into `0..w` (the edge sample not repeated), for any `i`.
+fn mirror(i: i64, w: usize) -> usize {
+    if w == 1 {
+        return 0;
+    }
+    let period = 2 * (w as i64 - 1);
+    let m = i.rem_euclid(period);
+    (if m < w as i64 { m } else { period - m }) as usize
+}
+
+/// The smallest length at least `n` whose only prime factors are 2, 3 and 5 (fast transforms).
+fn fast_length(n: usize) -> usize {
+    let mut best = n.next_power_of_two();
+    let mut p2 = 1;
+    while p2 < best {
+        let mut p3 = p2;
+        while p3 < best {
+            let mut p5 = p3;
+            while p5 < n {
+                p5 *= 5;
+            }
+            best = best.min(p5);
+            p3 *= 3;
+        }
+        p2 *= 2;
+    }
+    best
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A row of texture (a deterministic mix of frequencies and steps).
+    fn texture(w: usize) -> Vec<f32> {
+        (0..w)
+            .map(|x| {
+                let x = x as f32;
+                let steps = if (x / 23.0) as i32 % 2 == 0 {
+                    60.0
+                } else {
+                    0.0
+                };
+                100.0 + steps + 40.0 * (x * 0.21).sin() + 25.0 * (x * 0.057).cos()
+            })
+            .collect()
+    }
+
+    /// `row` blurred by the box of [`box_spectrum`] (edges mirrored, as the camera's scene
+    /// would continue).
+    fn blurred(row: &[f32], length: f64) -> Vec<f32> {
+        let half = length / 2.0;
+        let reach = half.ceil() as i64;
+        (0..row.len() as i64)
+            .map(|x| {
+                (-reach..=reach)
+                    .map(|j| {
+                        let lo = (j as f64 - 0.5).max(-half);
+                        let hi = (j as f64 + 0.5).min(half);
+                        let w = ((hi - lo).max(0.0) / length) as f32;
+                        w * row[mirror(x + j, row.len())]
+                    })
+                    .sum()
+            })
+            .collect()
+    }
+
+    fn rms(a: &[f32], b: &[f32]) -> f32 {
+        let sum: f32 = a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum();
+        (sum / a.len() as f32).sqrt()
+    }
+
+    #[test]
+    fn a_known_box_is_undone() {
+        let w = 400;
+        let sharp = texture(w);
+        for length in [3.0, 7.5, 20.0, 41.25] {
+            let blur = blurred(&sharp, length);
+            let mut data: Vec<u16> = blur.iter().map(|&v| v.round() as u16).collect();
+            deblur_rows(&mut data, w, 1, &[length], 0.01, 1023.0).unwrap();
+            let restored: Vec<f32> = data.iter().map(|&v| f32::from(v)).collect();
+            let before = rms(&blur, &sharp);
+            let after = rms(&restored, &sharp);
+            // Rounding to whole levels is the noise, amplified where the box's spectrum is
+            // near zero: the same filter in numpy leaves 2.2-2.6 times less error.
+            assert!(after < before / 2.0, "length {length}: {before} -> {after}");
+        }
+    }
+
+    #[test]
+    fn short_blur_and_flat_rows_are_left_alone() {
+        let mut data: Vec<u8> = texture(64).iter().map(|&v| v as u8).collect();
+        let before = data.clone();
+        deblur_rows(&mut data, 64, 1, &[0.6], DEFAULT_NOISE_TO_SIGNAL, 255.0).unwrap();
+        assert_eq!(data, before);
+        let mut flat = vec![77u8; 3 * 100];
+        deblur_rows(&mut flat, 100, 3, &[12.0], DEFAULT_NOISE_TO_SIGNAL, 255.0).unwrap();
+        assert!(flat.iter().all(|&v| v == 77), "a flat row stays flat");
+    }
+
+    #[test]
+    fn channels_are_deblurred_apart() {
+        let w = 200;
+        let sharp = texture(w);
+        let blur = blurred(&sharp, 9.0);
+        // Channel 0 the texture, channel 1 constant: the constant stays constant.
+        let mut data: Vec<u8> = blur
+            .iter()
+            .flat_map(|&v| [(v * 0.9).round() as u8, 40u8])
+            .collect();
+        deblur_rows(&mut data, w, 2, &[9.0], 0.01, 255.0).unwrap();
+        assert!(data.chunks(2).all(|p| p[1] == 40));
+        let restored: Vec<f32> = data.chunks(2).map(|p| f32::from(p[0]) / 0.9).collect();
+        let (before, after) = (rms(&blur, &sharp), rms(&restored, &sharp));
+        assert!(after < before / 1.5, "{before} -> {after}");
+    }
+
+    #[test]
+    fn bad_arguments_are_errors() {
+        let mut data = vec![0u8; 10];
+        assert!(deblur_rows(&mut data, 5, 1, &[3.0], 0.01, 255.0).is_err());
+        assert!(deblur_rows(&mut data, 5, 1, &[3.0, f64::NAN], 0.01, 255.0).is_err());
+        assert!(deblur_rows(&mut data, 5, 1, &[3.0, 3.0], 0.0, 255.0).is_err());
+        assert!(deblur_rows(&mut data, 0, 1, &[], 0.01, 255.0).is_err());
+        assert!(deblur_rows(&mut data, 5, 1, &[3.0, 3.0], 0.01, 255.0).is_ok());
+    }
+
+    #[test]
+    fn helpers() {
+        assert_eq!(
+            (0..8).map(|i| mirror(i - 3, 4)).collect::<Vec<_>>(),
+            [3, 2, 1, 0, 1, 2, 3, 2]
+        );
+        for n in [1, 7, 97, 1000, 1921, 2100] {
+            let f = fast_length(n);
+            assert!(f >= n && f <= n.next_power_of_two());
+            let mut m = f;
+            for p in [2, 3, 5] {
+                while m.is_multiple_of(p) {
+                    m /= p;
+                }
+            }
+            assert_eq!(m, 1, "{f}");
+        }
+        assert_eq!(fast_length(1921), 1944);
+    }
+}
