@@ -241,6 +241,33 @@ impl Report {
         }
     }
 
+    /// Which rulers made ``k``: ``"faces"``, ``"faces+scene"`` or ``"scene"``; ``None`` when
+    /// ``k`` is.
+    #[getter]
+    fn k_source(&self) -> Option<&'static str> {
+        self.inner.k_source.map(|s| s.name())
+    }
+
+    /// The shear the scene's verticals give (``ruler``), or ``None`` when the scene was not read
+    /// or gave none.
+    #[getter]
+    fn scene_k(&self) -> Option<f64> {
+        self.inner.scene.as_ref().map(|s| s.k)
+    }
+
+    /// The uncertainty (one standard deviation) of ``scene_k``.
+    #[getter]
+    fn scene_uncertainty(&self) -> Option<f64> {
+        self.inner.scene.as_ref().map(|s| s.uncertainty)
+    }
+
+    /// Whether the faces and the scene both gave a shear and these disagree beyond their
+    /// uncertainties (the faces made ``k``: the subject moved differently from the camera).
+    #[getter]
+    fn scene_disagrees(&self) -> bool {
+        self.inner.scene_disagrees
+    }
+
     /// What the caller should know about this image (views skipped, data missing, ...).
     #[getter]
     fn warnings(&self) -> Vec<String> {
@@ -260,6 +287,17 @@ impl Report {
         d.set_item("warnings", self.inner.warnings.clone())?;
         if self.inner.readout == Readout::Columns {
             d.set_item("readout", "columns")?;
+        }
+        // Present only when set, as in the CLI's JSON.
+        if let Some(source) = self.k_source() {
+            d.set_item("k_source", source)?;
+        }
+        if let Some(scene) = &self.inner.scene {
+            d.set_item("scene_k", scene.k)?;
+            d.set_item("scene_uncertainty", scene.uncertainty)?;
+        }
+        if self.inner.scene_disagrees {
+            d.set_item("scene_disagrees", true)?;
         }
         Ok(d)
     }

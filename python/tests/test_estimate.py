@@ -71,7 +71,8 @@ def test_face_fields(corrector: unshear.Unshear) -> None:
     assert f.refused is None and not f.outvoted
     assert not report.faces_disagree and isinstance(report.warnings, list)
     d = report.to_dict()
-    assert set(d) == {"k", "faces", "faces_disagree", "warnings"}
+    assert set(d) == {"k", "k_source", "faces", "faces_disagree", "warnings"}
+    assert report.k_source == d["k_source"] == "faces" and not report.scene_disagrees
     assert set(d["faces"][0]) == {
         "box",
         "right_eye",
@@ -220,6 +221,11 @@ def assert_same(cli: dict[str, object], report: unshear.Report) -> None:
             assert abs(float(a) - float(b)) <= 6e-5, (where, a, b)  # type: ignore[arg-type]
 
     close(cli["k"], ours["k"], "k")
+    for key in ("k_source", "scene_disagrees"):
+        assert cli.get(key) == ours.get(key), key
+    for key in ("scene_k", "scene_uncertainty"):
+        close(cli.get(key), ours.get(key), key)
+    assert report.scene_k == ours.get("scene_k")
     faces = cli["faces"]
     assert isinstance(faces, list) and len(faces) == len(ours["faces"])
     for i, (a, b) in enumerate(zip(faces, ours["faces"])):
@@ -261,3 +267,22 @@ def test_agrees_with_the_cli_json(
     assert sum(r.k is not None for r in reports) >= 5
     for line, report in zip(lines, reports):
         assert_same(line, report)
+
+
+def test_the_scenes_verticals_are_reported_without_faces() -> None:
+    """A drawing of upright posts and rails sheared by 0.2: no face, so ``k`` stays ``None``
+    by default while the scene's shear is reported; ``ruler="scene"`` corrects by it."""
+    img = np.full((360, 480), 210, np.uint8)
+    for x in range(30, 460, 40):
+        img[20:340, x : x + 6] = 40
+    for y in (60, 180, 300):
+        img[y : y + 5, 20:460] = 90
+    sheared = unshear.distort(img, 0.2)
+    report = unshear.Unshear().estimate(sheared)
+    assert report.k is None and report.k_source is None
+    assert report.scene_k is not None and report.scene_uncertainty is not None
+    assert abs(report.scene_k - 0.2) < 0.02, report.scene_k
+    d = report.to_dict()
+    assert d["scene_k"] == report.scene_k and "k_source" not in d
+    scene = unshear.Unshear(ruler="scene").estimate(sheared)
+    assert scene.k_source == "scene" and scene.k is not None and abs(scene.k - 0.2) < 0.02

@@ -133,10 +133,24 @@ class Report:
         phone held upright; ``estimate_file``), read out column by column: ``k`` is then the
         vertical shear ``y' = y + k x``, and ``correct`` undoes it so."""
     @property
+    def k_source(self) -> Literal["faces", "faces+scene", "scene"] | None:
+        """Which rulers made ``k``; ``None`` when ``k`` is."""
+    @property
+    def scene_k(self) -> float | None:
+        """The shear the scene's verticals give (see ``ruler``), or ``None``."""
+    @property
+    def scene_uncertainty(self) -> float | None:
+        """One standard deviation of ``scene_k``."""
+    @property
+    def scene_disagrees(self) -> bool:
+        """Whether the faces and the scene disagree beyond their uncertainties (the faces made
+        ``k``: the subject moved differently from the camera)."""
+    @property
     def warnings(self) -> list[str]:
         """What the caller should know about this image (views skipped, data missing, ...)."""
     def to_dict(self) -> dict[str, Any]:
-        """``{"k": ..., "faces": [...]}`` with the CLI's ``--json`` keys, not rounded."""
+        """``{"k": ..., "faces": [...]}`` with the CLI's ``--json`` keys (``k_source``,
+        ``scene_k``, ``scene_uncertainty``, ``scene_disagrees`` when set), not rounded."""
     # Compared by value, so unhashable; pickled and copied whole (every property, not only
     # those of to_dict()).
     __hash__: ClassVar[None]  # type: ignore[assignment]
