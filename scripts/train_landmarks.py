@@ -25,6 +25,12 @@ contrast, blur and noise; the loss is the landmarks' L1 error in eye distances p
 shear's L1 error, plus a small pull of each heatmap towards a Gaussian at its label (keeps the
 maps single-peaked), on the face crops, and the face score's cross-entropy on all crops
 (non-face crops teach it). 10% of the faces (by face index) are held out and scored every epoch.
+
+Shear-only crops (label `shear_only`, the extra faces whose points are pseudo-labels:
+`landmark_crops --extra`) teach the shear and the face score only: the landmarks' L1 and heatmap
+losses leave them out. The held-out scores recorded in the file (`held_out_scores`) are those of
+the held-out Caltech faces and non-face crops, as without extra faces; the held-out extra faces'
+shear and face scores are logged and recorded apart (`held_out_extra_scores`).
 """
 
 from __future__ import annotations
@@ -246,6 +252,32 @@ def evaluate(
     return out
 
 
+def evaluate_shear_only(
+    net: Net, X: np.ndarray, L: np.ndarray, idx: np.ndarray, batch: int = 256
+) -> dict[str, float]:
+    """The held-out shear-only crops' scores: the shear head's error and the face score (their
+    points are pseudo-labels, not scored)."""
+    net.eval()
+    shears: list[np.ndarray] = []
+    faces: list[np.ndarray] = []
+    with torch.no_grad():
+        for i in range(0, len(idx), batch):
+            j = idx[i : i + batch]
+            x = torch.from_numpy(X[j].astype(np.float32))[:, None] / 255.0
+            _heat, sh, fl = net(standardize(x))
+            shears.append(sh.numpy())
+            faces.append(torch.sigmoid(fl).numpy())
+    net.train()
+    s = np.concatenate(shears).astype(np.float64)
+    f = np.concatenate(faces).astype(np.float64)
+    err = np.abs(s - L[idx, 8].astype(np.float64))
+    return {
+        "head_shear_med": float(np.median(err)),
+        "head_shear<=0.05": float(np.mean(err <= 0.05)),
+        "faces_scored>=0.5": float(np.mean(f >= 0.5)),
+    }
+
+
 def fold_bn(conv: nn.Conv2d, bn: nn.BatchNorm2d) -> tuple[torch.Tensor, torch.Tensor]:
     """The convolution's weights and bias with the batch normalisation folded in."""
     w = conv.weight.detach().double()
@@ -392,9 +424,20 @@ def main() -> None:
     face = L[:, 11].astype(np.int64)
     face = np.where(face < 0, np.arange(len(face)) // 4, face)
     held = (face * 2654435761 % 100) < args.val_percent
+    # Shear-only crops (extra faces with pseudo-labelled points): no landmark loss, scored apart.
+    fields = meta["label_fields"]
+    if "shear_only" in fields:
+        shear_only = L[:, fields.index("shear_only")] > 0.5
+    else:
+        shear_only = np.zeros(len(L), dtype=bool)
     train_idx = np.nonzero(~held)[0]
-    val_idx = np.nonzero(held)[0]
-    print(f"{len(train_idx)} training crops, {len(val_idx)} held out; size {size}", flush=True)
+    val_idx = np.nonzero(held & ~shear_only)[0]
+    val_extra_idx = np.nonzero(held & shear_only)[0]
+    print(
+        f"{len(train_idx)} training crops ({int(shear_only[train_idx].sum())} shear-only), "
+        f"{len(val_idx)} held out (+{len(val_extra_idx)} shear-only); size {size}",
+        flush=True,
+    )
 
     widths = tuple(int(w) for w in args.widths.split(","))
     net = Net(widths, args.fpn, size)
@@ -425,20 +468,25 @@ def main() -> None:
             kappa = lab[:, 8].clone()
             x, pts, kappa = augment(x, pts, kappa, rng)
             is_face = lab[:, 12] > 0.5
+            # Faces whose points are labels (not shear-only): the landmark losses' crops.
+            marked = is_face & ~torch.from_numpy(shear_only[j])
             heat, sh, face_logit = net(standardize(x))
             loss_face = F.binary_cross_entropy_with_logits(face_logit, is_face.float())
             loss = args.face_weight * loss_face
             if is_face.any():
-                pred, prob = decode(heat[is_face], size)
-                pts, kappa = pts[is_face], kappa[is_face]
+                loss_shear = (sh[is_face] - kappa[is_face]).abs().mean()
+                loss = loss + args.shear_weight * loss_shear
+            if marked.any():
+                pred, prob = decode(heat[marked], size)
+                pts = pts[marked]
                 d = (pts[:, 1] - pts[:, 0]).norm(dim=1).clamp_min(1.0)
                 loss_pts = ((pred - pts).abs().sum(-1) / d[:, None]).mean()
                 tgt = gaussian_targets(pts, heat.shape[2], heat.shape[3], size)
                 loss_heat = -(tgt * torch.log(prob.clamp_min(1e-12))).sum(dim=(-1, -2)).mean()
-                loss_shear = (sh[is_face] - kappa).abs().mean()
-                loss = (
-                    loss + loss_pts + args.shear_weight * loss_shear + args.heat_weight * loss_heat
-                )
+                # Weighted by the marked share of the face crops, so that a batch's landmark
+                # loss per marked crop is what it would be without shear-only crops around it.
+                share = marked.sum() / is_face.sum()
+                loss = loss + share * (loss_pts + args.heat_weight * loss_heat)
             opt.zero_grad()
             loss.backward()
             opt.step()
@@ -452,6 +500,9 @@ def main() -> None:
         }
         if len(val_idx):
             msg.update({k: round(v, 4) for k, v in evaluate(net, X, L, val_idx, size).items()})
+        if len(val_extra_idx):
+            extra = evaluate_shear_only(net, X, L, val_extra_idx)
+            msg.update({f"extra_{k}": round(v, 4) for k, v in extra.items()})
         print(json.dumps(msg), flush=True)
         torch.save(
             {"state": net.state_dict(), "summary": {"epoch": epoch + 1}}, args.out + ".epoch.pt"
@@ -467,6 +518,10 @@ def main() -> None:
     }
     if len(val_idx):
         summary["held_out_scores"] = evaluate(net, X, L, val_idx, size)
+    if len(val_extra_idx):
+        summary["shear_only_crops"] = int(shear_only[train_idx].sum())
+        summary["held_out_extra"] = len(val_extra_idx)
+        summary["held_out_extra_scores"] = evaluate_shear_only(net, X, L, val_extra_idx)
     torch.save({"state": net.state_dict(), "summary": summary}, args.out + ".pt")
     export(net, args.out, summary)
     print(f"wrote {args.out}", file=sys.stderr)

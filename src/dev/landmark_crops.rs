@@ -27,6 +27,17 @@
 //!   half are turned by the head's roll (the eye line's angle) plus a normal error of
 //!   [`ROLL_JITTER`] radians.
 //!
+//! **Shear-only faces.** Shear is its own label: any upright face photo, sheared by a known
+//! `k`, teaches the shear head. Besides the Caltech faces, [`export_crops_with_extra`] cuts
+//! crops of *extra* faces whose points are pseudo-labels (found by the pipeline itself on the
+//! photo as it is, [`extra_faces`]), the photo taken as unsheared. Their crops are cut exactly as
+//! the Caltech faces' (same distributions), marked `shear_only` (label field 13), and the
+//! trainer learns only the shear and the face score from them, never the points. Their face
+//! indices start at [`EXTRA_FACE_INDEX`]; their photos give no non-face crops, and the
+//! Caltech rule that skips photos holding a face 40 px or more apart does not apply to them
+//! (it only keeps the Caltech accuracy tables' photos out of training; the extra photos are in
+//! no table).
+//!
 //! Mirror images are left to the trainer (the crop is symmetric about its vertical mid-line, so
 //! flipping a crop is the crop of the flipped photo).
 //!
@@ -62,7 +73,7 @@ pub const PHOTO_SHEAR: f64 = 0.5;
 pub const ROLL_JITTER: f64 = 0.06;
 
 /// The values stored per crop in `labels.f32` (little-endian `f32`), in this order.
-pub const LABEL_FIELDS: [&str; 13] = [
+pub const LABEL_FIELDS: [&str; 14] = [
     "right_eye_x",
     "right_eye_y",
     "left_eye_x",
@@ -76,7 +87,57 @@ pub const LABEL_FIELDS: [&str; 13] = [
     "eye_distance_px",
     "face_index",
     "is_face",
+    "shear_only",
 ];
+
+/// The face index of the first extra (shear-only) face: the extra faces are numbered from here
+/// in their order, after every Caltech face (5094), so their seeds and the trainer's held-out
+/// hash differ from the Caltech faces'. Exact in the `f32` labels (below 2^24).
+pub const EXTRA_FACE_INDEX: usize = 1_000_000;
+
+/// The extra (shear-only) faces of the file `ground_truth`, in the Caltech format with image
+/// names relative to the folder `images` (`scripts/pseudo_annotations.py` writes it from an
+/// `unshear estimate --json` run at `k = 0`; `assets/train/` holds the committed network's).
+/// When the folder holding `images` has an `identity.txt`, as the LFW subset has, it is the
+/// subset's identity list (`<image> <identity>`, names relative to `images` too) and only the
+/// faces of photos of the identities the networks may train on are kept
+/// ([`crate::dev::dataset::lfw_trained_identity`]: even positions in the sorted names); a photo
+/// the list does not name is dropped.
+pub fn extra_faces(
+    ground_truth: &std::path::Path,
+    images: &std::path::Path,
+) -> Result<Vec<AnnotatedFace>> {
+    let text = std::fs::read_to_string(ground_truth).map_err(|source| Error::Io {
+        path: ground_truth.to_path_buf(),
+        source,
+    })?;
+    let faces = crate::dev::dataset::CaltechWebFaces::parse(&text, images)?;
+    let beside = images
+        .canonicalize()
+        .map_err(|source| Error::Io {
+            path: images.to_path_buf(),
+            source,
+        })?
+        .parent()
+        .map(|p| p.join("identity.txt"));
+    let Some(identities_path) = beside.filter(|p| p.exists()) else {
+        return Ok(faces);
+    };
+    let text = std::fs::read_to_string(&identities_path).map_err(|source| Error::Io {
+        path: identities_path.clone(),
+        source,
+    })?;
+    let identities = crate::dev::dataset::parse_identity_list(&text, images)?;
+    let trained: std::collections::HashSet<&std::path::Path> = identities
+        .iter()
+        .filter(|i| crate::dev::dataset::lfw_trained_identity(&identities, &i.identity))
+        .map(|i| i.image.as_path())
+        .collect();
+    Ok(faces
+        .into_iter()
+        .filter(|f| trained.contains(f.image.as_path()))
+        .collect())
+}
 
 /// What to export.
 #[derive(Debug, Clone, PartialEq)]
@@ -94,6 +155,8 @@ pub struct ExportOptions {
     pub negatives_per_image: usize,
     /// Seed of the generators.
     pub seed: u64,
+    /// Crops per extra (shear-only) face ([`export_crops_with_extra`]).
+    pub extra_per_face: usize,
 }
 
 impl Default for ExportOptions {
@@ -105,6 +168,7 @@ impl Default for ExportOptions {
             max_eye_distance: 40.0,
             negatives_per_image: 2,
             seed: 0x6c61_6e64_6d61_726b,
+            extra_per_face: 8,
         }
     }
 }
@@ -175,9 +239,16 @@ pub struct ExportSummary {
     pub crops: usize,
     /// Non-face crops written.
     pub negatives: usize,
+    /// Extra (shear-only) faces used (also counted in `faces`).
+    pub extra_faces: usize,
+    /// Shear-only crops written (also counted in `crops`).
+    pub extra_crops: usize,
     /// Images that could not be read (skipped).
     pub unreadable: Vec<String>,
 }
+
+/// The faces of one photo, each with its index (its seed).
+type IndexedFaces = Vec<(usize, AnnotatedFace)>;
 
 /// A standard normal draw (Box-Muller).
 fn normal(rng: &mut SplitMix64) -> f64 {
@@ -259,17 +330,23 @@ fn face_samples(
     face: &AnnotatedFace,
     face_index: usize,
     options: &ExportOptions,
+    shear_only: bool,
 ) -> Vec<Sample> {
+    let per_face = if shear_only {
+        options.extra_per_face
+    } else {
+        options.per_face
+    };
     let mut rng = SplitMix64::new(options.seed.wrapping_add(face_index as u64));
     let distance = face.eye_distance();
     let head_roll = (face.left_eye.y - face.right_eye.y).atan2(face.left_eye.x - face.right_eye.x);
-    let mut out = Vec::with_capacity(options.per_face);
+    let mut out = Vec::with_capacity(per_face);
     // The versions whose frame holds the face (the photo as it is always does).
     let versions: Vec<&Version> = versions.iter().filter(|v| v.shows(face)).collect();
     if versions.is_empty() {
         return out;
     }
-    for _ in 0..options.per_face {
+    for _ in 0..per_face {
         let version = versions[(rng.next_f64() * versions.len() as f64) as usize % versions.len()];
         let (re, le) = (version.point(face.right_eye), version.point(face.left_eye));
         let midpoint = re.midpoint(le);
@@ -315,6 +392,7 @@ fn face_samples(
         labels[10] = distance as f32;
         labels[11] = face_index as f32;
         labels[12] = 1.0;
+        labels[13] = f32::from(u8::from(shear_only));
         out.push(Sample {
             pixels: to_bytes(&pixels),
             labels,
@@ -336,6 +414,20 @@ pub fn export_crops(
     options: &ExportOptions,
     out_dir: &std::path::Path,
 ) -> Result<ExportSummary> {
+    export_crops_with_extra(faces, Vec::new(), options, out_dir)
+}
+
+/// [`export_crops`] of the Caltech faces `faces` (written first, exactly as without extras),
+/// then `options.extra_per_face` shear-only crops of each face of `extra` (see the module's
+/// documentation; [`extra_faces`] reads them) with eyes at least `options.min_eye_distance`
+/// apart, numbered from [`EXTRA_FACE_INDEX`] in their order: no maximum eye distance, no photo
+/// skipped for a large face, no non-face crops.
+pub fn export_crops_with_extra(
+    faces: Vec<AnnotatedFace>,
+    extra: Vec<AnnotatedFace>,
+    options: &ExportOptions,
+    out_dir: &std::path::Path,
+) -> Result<ExportSummary> {
     let io_error = |path: &std::path::Path| {
         let path = path.to_path_buf();
         move |source| Error::Io { path, source }
@@ -348,14 +440,31 @@ pub fn export_crops(
     for (i, f) in indexed {
         groups.entry(f.image.clone()).or_default().push((i, f));
     }
-    let groups: Vec<(std::path::PathBuf, Vec<(usize, AnnotatedFace)>)> = groups
+    // The Caltech photos (marked `false`: not shear-only), then the extra ones.
+    let mut groups: Vec<(std::path::PathBuf, IndexedFaces, bool)> = groups
         .into_iter()
         .filter(|(_, faces)| {
             faces
                 .iter()
                 .all(|(_, f)| f.eye_distance() < options.max_eye_distance)
         })
+        .map(|(path, faces)| (path, faces, false))
         .collect();
+    let mut extra_groups: std::collections::BTreeMap<
+        std::path::PathBuf,
+        Vec<(usize, AnnotatedFace)>,
+    > = std::collections::BTreeMap::new();
+    for (i, f) in extra.into_iter().enumerate() {
+        extra_groups
+            .entry(f.image.clone())
+            .or_default()
+            .push((EXTRA_FACE_INDEX + i, f));
+    }
+    groups.extend(
+        extra_groups
+            .into_iter()
+            .map(|(path, faces)| (path, faces, true)),
+    );
     let crops_path = out_dir.join("crops.u8");
     let labels_path = out_dir.join("labels.f32");
     let mut crops =
@@ -375,7 +484,8 @@ pub fn export_crops(
     for chunk in groups.chunks(256) {
         let cut: Vec<std::result::Result<(usize, Vec<Sample>), String>> = chunk
             .par_iter()
-            .map(|(path, faces)| {
+            .map(|(path, faces, shear_only)| {
+                let shear_only = *shear_only;
                 let img = imageio::read_image(path, imageio::DEFAULT_MAX_PIXELS)
                     .map_err(|e| e.to_string())?;
                 let gray = crate::detect::to_gray_opencv(&img);
@@ -391,25 +501,30 @@ pub fn export_crops(
                 versions.push(Version::unsheared(gray));
                 let in_range = |f: &AnnotatedFace| {
                     let d = f.eye_distance();
-                    d >= options.min_eye_distance && d < options.max_eye_distance
+                    d >= options.min_eye_distance && (shear_only || d < options.max_eye_distance)
                 };
                 let mut samples: Vec<Sample> = faces
                     .iter()
                     .filter(|(_, f)| in_range(f))
-                    .flat_map(|(i, f)| face_samples(&versions, f, *i, options))
+                    .flat_map(|(i, f)| face_samples(&versions, f, *i, options, shear_only))
                     .collect();
                 let used = faces.iter().filter(|(_, f)| in_range(f)).count();
-                let all: Vec<&AnnotatedFace> = faces.iter().map(|(_, f)| f).collect();
-                samples.extend(negative_samples(
-                    &versions, &all, &detector, &mut rng, options,
-                ));
+                if !shear_only {
+                    let all: Vec<&AnnotatedFace> = faces.iter().map(|(_, f)| f).collect();
+                    samples.extend(negative_samples(
+                        &versions, &all, &detector, &mut rng, options,
+                    ));
+                }
                 Ok((used, samples))
             })
             .collect();
-        for ((path, _), result) in chunk.iter().zip(cut) {
+        for ((path, _, shear_only), result) in chunk.iter().zip(cut) {
             match result {
                 Ok((used, samples)) => {
                     summary.faces += used;
+                    if *shear_only {
+                        summary.extra_faces += used;
+                    }
                     for s in samples {
                         crops.write_all(&s.pixels).map_err(io_error(&crops_path))?;
                         for v in s.labels {
@@ -419,6 +534,9 @@ pub fn export_crops(
                         }
                         if s.labels[12] > 0.5 {
                             summary.crops += 1;
+                            if s.labels[13] > 0.5 {
+                                summary.extra_crops += 1;
+                            }
                         } else {
                             summary.negatives += 1;
                         }
@@ -440,6 +558,10 @@ pub fn export_crops(
         "faces": summary.faces,
         "crops": summary.crops,
         "negatives": summary.negatives,
+        "extra_per_face": options.extra_per_face,
+        "extra_faces": summary.extra_faces,
+        "extra_crops": summary.extra_crops,
+        "extra_face_index": EXTRA_FACE_INDEX,
         "label_fields": LABEL_FIELDS,
         "crop_eye_distances": CROP_EYE_DISTANCES,
         "eyes_above_centre": EYES_ABOVE_CENTRE,
@@ -529,6 +651,7 @@ fn negative_samples(
             labels[10] = 0.0;
             labels[11] = -1.0;
             labels[12] = 0.0;
+            labels[13] = 0.0;
             out.push(Sample {
                 pixels: to_bytes(&pixels),
                 labels,
@@ -584,6 +707,117 @@ mod tests {
         // never a face that is unseen, nor one beside a large face.
         let trained = trained_faces(&faces, &ExportOptions::default());
         assert_eq!(trained, [false, false, true, false, false, false]);
+    }
+
+    /// Extra faces add shear-only crops after the Caltech ones, which stay byte for byte what
+    /// they are without extras; a photo with an extra face 45 px apart is not skipped.
+    #[test]
+    fn extra_faces_add_shear_only_crops_and_leave_the_caltech_crops_alone() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let images = dir.path().join("images");
+        std::fs::create_dir(&images).expect("mkdir");
+        let gray = image::GrayImage::from_fn(160, 160, |x, y| {
+            image::Luma([((x * 3 + y * 7) % 251) as u8])
+        });
+        for name in ["a.png", "b.png"] {
+            gray.save(images.join(name)).expect("save");
+        }
+        let face = |name: &str, eyes: f64| AnnotatedFace {
+            image: images.join(name),
+            right_eye: Point::new(60.0, 70.0),
+            left_eye: Point::new(60.0 + eyes, 70.0),
+            nose: Some(Point::new(60.0 + eyes / 2.0, 90.0)),
+            mouth: Some(Point::new(60.0 + eyes / 2.0, 100.0)),
+        };
+        let options = ExportOptions {
+            size: 32,
+            per_face: 3,
+            extra_per_face: 2,
+            negatives_per_image: 1,
+            ..ExportOptions::default()
+        };
+        let read = |out: &std::path::Path| {
+            let crops = std::fs::read(out.join("crops.u8")).expect("crops");
+            let labels: Vec<f32> = std::fs::read(out.join("labels.f32"))
+                .expect("labels")
+                .chunks(4)
+                .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+                .collect();
+            (crops, labels)
+        };
+        let (plain, mixed) = (dir.path().join("plain"), dir.path().join("mixed"));
+        let alone = export_crops(vec![face("a.png", 20.0)], &options, &plain).expect("export");
+        let summary = export_crops_with_extra(
+            vec![face("a.png", 20.0)],
+            vec![face("b.png", 45.0), face("b.png", 10.0)],
+            &options,
+            &mixed,
+        )
+        .expect("export");
+        assert_eq!((alone.crops, alone.extra_crops), (3, 0));
+        // The face 10 px apart is under the minimum; the one 45 px apart is kept.
+        assert_eq!(
+            (
+                summary.faces,
+                summary.extra_faces,
+                summary.crops,
+                summary.extra_crops
+            ),
+            (2, 1, 5, 2)
+        );
+        assert_eq!(summary.negatives, alone.negatives);
+        let ((c1, l1), (c2, l2)) = (read(&plain), read(&mixed));
+        let n = LABEL_FIELDS.len();
+        assert_eq!(c2[..c1.len()], c1[..]);
+        let same = l1.iter().zip(&l2).all(|(a, b)| a.to_bits() == b.to_bits());
+        assert!(same && l2.len() == l1.len() + 2 * n);
+        for row in l1.chunks(n) {
+            assert_eq!(row[13], 0.0);
+        }
+        for row in l2[l1.len()..].chunks(n) {
+            assert_eq!(
+                (row[11], row[12], row[13]),
+                (EXTRA_FACE_INDEX as f32, 1.0, 1.0)
+            );
+        }
+        let meta: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(mixed.join("meta.json")).expect("meta"))
+                .expect("json");
+        assert_eq!(meta["extra_crops"], 2);
+        assert_eq!(meta["label_fields"][13], "shear_only");
+    }
+
+    /// Extra faces whose image folder has an LFW identity list beside it keep only the trained
+    /// identities' photos.
+    #[test]
+    fn extra_faces_keep_only_the_lfw_identities_trained_on() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let images = dir.path().join("images");
+        std::fs::create_dir(&images).expect("mkdir");
+        let line = |name: &str| format!("{name} 10 20 30 20 20 30 20 40\n");
+        let text: String = ["alice0.jpg", "bob0.jpg", "carol0.jpg", "zed0.jpg"]
+            .iter()
+            .map(|n| line(n))
+            .collect();
+        let truth = dir.path().join("pseudo.txt");
+        std::fs::write(&truth, &text).expect("write");
+        let names = |faces: Vec<AnnotatedFace>| -> Vec<String> {
+            faces
+                .iter()
+                .map(|f| f.image.file_name().unwrap().to_string_lossy().into_owned())
+                .collect()
+        };
+        // Without an identity list: every face.
+        assert_eq!(names(extra_faces(&truth, &images).expect("faces")).len(), 4);
+        std::fs::write(
+            dir.path().join("identity.txt"),
+            "alice0.jpg Alice\nbob0.jpg Bob\ncarol0.jpg Carol\n",
+        )
+        .expect("write");
+        // Alice (0) and Carol (2) are trained on; Bob (1) is not; zed0.jpg is not listed.
+        let kept = extra_faces(&truth, &images).expect("faces");
+        assert_eq!(kept[0].image, images.join("alice0.jpg"));
+        assert_eq!(names(kept), ["alice0.jpg", "carol0.jpg"]);
     }
 
     #[test]
@@ -643,7 +877,7 @@ mod tests {
             ..ExportOptions::default()
         };
         let levels = |x: f64| -> Vec<u8> {
-            face_samples(&versions, &face(x), 0, &options)
+            face_samples(&versions, &face(x), 0, &options, false)
                 .iter()
                 .flat_map(|s| s.pixels.clone())
                 .collect()
@@ -676,7 +910,7 @@ mod tests {
             Version::unsheared(gray.clone()),
             Version::sheared(&gray, 0.3).expect("shear"),
         ];
-        let samples = face_samples(&versions, &face, 3, &options);
+        let samples = face_samples(&versions, &face, 3, &options, false);
         assert_eq!(samples.len(), 20);
         let unit = 48.0 / CROP_EYE_DISTANCES;
         let own = crate::estimate::shear_and_roll(Point::new(40.0, 2.0), Point::new(1.0, 44.0))
@@ -715,7 +949,7 @@ mod tests {
             assert!(l[8].abs() <= 0.6 && (l[11] - 3.0).abs() < 1e-6);
         }
         // Deterministic per face index.
-        let again = face_samples(&versions, &face, 3, &options);
+        let again = face_samples(&versions, &face, 3, &options, false);
         assert!(samples
             .iter()
             .zip(&again)
