@@ -2,7 +2,6 @@
 
 /// Median of the finite values (mean of the middle two for an even count); `None` when there
 /// are none.
-#[cfg(any(test, feature = "dev"))]
 pub fn median(mut values: Vec<f64>) -> Option<f64> {
     values.retain(|v| v.is_finite());
     if values.is_empty() {

@@ -852,7 +852,8 @@ pub struct VideoArgs {
     )]
     pub calibration_window: usize,
     /// Remove the motion blur along the rows of the frames corrected from motion: each row is
-    /// smeared by its image velocity times the exposure (needs --exposure or --exposure-ms).
+    /// smeared by its image velocity times the exposure (--exposure, --exposure-ms, or by
+    /// default estimated over the clip from the blur itself).
     #[arg(help_heading = "Motion blur", long)]
     pub deblur: bool,
     /// Each row's exposure as a fraction of the frame interval, in (0, 1] (for --deblur).
@@ -889,7 +890,7 @@ pub struct VideoArgs {
 fn exposure_fraction(s: &str) -> Result<f64, String> {
     let v: f64 = s.parse().map_err(|e| format!("{e}"))?;
     unshear::video::Deblur::new(v)
-        .map(|d| d.exposure)
+        .map(|_| v)
         .map_err(|e| e.to_string())
 }
 

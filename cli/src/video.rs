@@ -582,19 +582,21 @@ fn video_or_calibrate(a: VideoArgs, calibrate: Option<bool>) -> Result<bool> {
     };
     let deblur = match (a.deblur, a.exposure, a.exposure_ms) {
         (false, _, _) => None,
-        (true, Some(e), _) => Some(e),
-        (true, None, Some(ms)) => Some(ms * fps / 1000.0),
-        (true, None, None) => usage_error(
-            "--deblur needs the exposure: --exposure FRACTION (of the frame interval) or \
-             --exposure-ms MS",
-        ),
+        (true, Some(e), _) => Some(Some(e)),
+        (true, None, Some(ms)) => Some(Some(ms * fps / 1000.0)),
+        // Estimated over the clip from the blur itself.
+        (true, None, None) => Some(None),
     }
-    .map(|e| {
-        let d = unshear::video::Deblur::new(e).unwrap_or_else(|_| {
-            usage_error(&format!(
-                "an exposure of {e:.3} frame intervals at {fps:.3} frames/s is outside (0, 1]"
-            ))
-        });
+    .map(|exposure| {
+        let d = match exposure {
+            Some(e) => unshear::video::Deblur::new(e).unwrap_or_else(|_| {
+                usage_error(&format!(
+                    "an exposure of {e:.3} frame intervals at {fps:.3} frames/s is outside \
+                     (0, 1]"
+                ))
+            }),
+            None => unshear::video::Deblur::estimated(),
+        };
         unshear::video::Deblur {
             noise_to_signal: a.deblur_noise,
             ..d
@@ -827,6 +829,25 @@ fn video_or_calibrate(a: VideoArgs, calibrate: Option<bool>) -> Result<bool> {
             !a.no_motion
         )
     );
+    if a.deblur {
+        let given = a.exposure.is_some() || a.exposure_ms.is_some();
+        match stats.exposure {
+            Some(e) => eprintln!(
+                "unshear video: motion blur removed with an exposure of {e:.3} of the frame \
+                 interval ({:.2} ms){}",
+                e / fps * 1000.0,
+                if given {
+                    ""
+                } else {
+                    ", estimated from the blur"
+                }
+            ),
+            None => eprintln!(
+                "unshear video: motion blur not removed: the exposure could not be estimated \
+                 (too few frames moving fast enough show a clear blur; give --exposure)"
+            ),
+        }
+    }
     if let Some((o, plan)) = &written {
         eprintln!("unshear video: wrote {}: {}", o.display(), describe(plan));
     }

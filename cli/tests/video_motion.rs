@@ -552,23 +552,43 @@ fn deblurring_sharpens_frames_corrected_from_motion() {
         assert!((blur - v * exposure).abs() < 0.1 * v * exposure, "{blur}");
     }
     assert!(plain.iter().all(|(_, r)| r.blur.is_none()));
+
+    // The exposure estimated from the blur itself, over two passes: within 5% of the truth.
+    let blurred_long = render(
+        faces_scene(),
+        SimulationParams {
+            exposure,
+            ..params(Profile::Constant { v }, rho, 16)
+        },
+    )
+    .0;
+    let mut p = VideoProcessor::new(
+        &unshear,
+        ProcessOptions {
+            network_budget: unshear.config().network_budget,
+            deblur: Some(unshear::video::Deblur::estimated()),
+            ..known
+        },
+    );
+    for f in &blurred_long {
+        p.analyse_frame(f);
+    }
+    p.end_analysis();
+    let found = p.exposure().expect("the exposure found from the blur");
+    assert!((found - exposure).abs() < 0.05 * exposure, "{found}");
 }
 
-/// `--deblur` needs the exposure; a JSON line reports the blur removed.
+/// `--deblur`: the exposure given (a bad one is a usage error) or estimated from the blur; a
+/// JSON line reports the blur removed.
 #[test]
 fn deblur_on_the_command_line() {
     let rho = 0.8;
     let v = 0.25 * f64::from(H) / rho;
-    let (frames, _) = render(faces_scene(), params(Profile::Constant { v }, rho, 6));
+    // Rendered with an exposure of 0.12 of the frame interval.
+    let (frames, _) = render(faces_scene(), params(Profile::Constant { v }, rho, 18));
     let dir = tempfile::tempdir().unwrap();
     let clip = dir.path().join("clip.y4m");
     write_y4m(&clip, &frames);
-    unshear_cmd()
-        .args(["video", "--deblur", "--readout-fraction", "0.8", "-o", "-"])
-        .arg(&clip)
-        .assert()
-        .code(2)
-        .stderr(predicates::str::contains("--exposure"));
     for bad in ["0", "1.5", "-0.1"] {
         unshear_cmd()
             .args(["video", "--deblur", "--exposure", bad])
@@ -576,6 +596,20 @@ fn deblur_on_the_command_line() {
             .assert()
             .code(2);
     }
+    let out = unshear_cmd()
+        .args(["video", "--readout-fraction", "0.8", "--deblur", "-o", "-"])
+        .arg(&clip)
+        .assert()
+        .success();
+    let stderr = String::from_utf8_lossy(&out.get_output().stderr).to_string();
+    let estimated: f64 = stderr
+        .split("exposure of ")
+        .nth(1)
+        .and_then(|rest| rest.split_whitespace().next())
+        .and_then(|x| x.parse().ok())
+        .unwrap_or_else(|| panic!("no exposure in {stderr}"));
+    assert!(stderr.contains("estimated from the blur"), "{stderr}");
+    assert!((estimated - 0.12).abs() < 0.012, "{estimated}");
     let out = unshear_cmd()
         .args(["video", "--json", "--readout-fraction", "0.8", "--deblur"])
         .args(["--exposure-ms", "4", "--no-correct"])

@@ -82,13 +82,23 @@ pub fn readout_fraction(value: &Bound<'_, PyAny>) -> PyResult<Option<f64>> {
         .map_err(|e| PyValueError::new_err(e.to_string()))
 }
 
-pub fn deblur_exposure(value: &Bound<'_, PyAny>) -> PyResult<Option<f64>> {
+/// ``deblur_exposure``: ``None`` (off), ``"auto"`` (estimated from the blur) or a fraction of
+/// the frame interval in (0, 1].
+pub fn deblur_exposure(value: &Bound<'_, PyAny>) -> PyResult<Option<unshear::video::Deblur>> {
     if value.is_none() {
         return Ok(None);
     }
+    if let Ok(s) = value.extract::<String>() {
+        return match s.as_str() {
+            "auto" => Ok(Some(unshear::video::Deblur::estimated())),
+            other => Err(PyValueError::new_err(format!(
+                "deblur_exposure must be a fraction of the frame interval or \"auto\", got {other:?}"
+            ))),
+        };
+    }
     let x = real("deblur_exposure", value)?;
     unshear::video::Deblur::new(x)
-        .map(|d| Some(d.exposure))
+        .map(Some)
         .map_err(|e| PyValueError::new_err(e.to_string()))
 }
 

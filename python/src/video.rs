@@ -339,7 +339,9 @@ impl VideoCorrector {
         #[pyo3(from_py_with = args::readout_fraction)] readout_fraction: Option<f64>,
         motion: bool,
         vertical: bool,
-        #[pyo3(from_py_with = args::deblur_exposure)] deblur_exposure: Option<f64>,
+        #[pyo3(from_py_with = args::deblur_exposure)] deblur_exposure: Option<
+            unshear::video::Deblur,
+        >,
         correct: bool,
         bgr: bool,
         #[pyo3(from_py_with = args::max_pixels)] max_pixels: u64,
@@ -388,7 +390,7 @@ impl VideoCorrector {
             readout_fraction,
             motion,
             vertical,
-            deblur: deblur_exposure.and_then(|e| unshear::video::Deblur::new(e).ok()),
+            deblur: deblur_exposure,
             ..ProcessOptions::default()
         };
         let stream = Stream::new(unshear, |u| VideoProcessor::new(u, options));

@@ -363,8 +363,9 @@ class VideoCorrector:
     per-row offset when the pan changes speed during the readout; ``motion=False`` keeps the
     faces alone, ``vertical=True`` also undoes vertical motion's stretch.
     ``deblur_exposure`` (each row's exposure over the frame interval, in (0, 1]; 4 ms at 30
-    frames/s is 0.12) also removes the motion blur along the rows of frames corrected from
-    motion: each row's image velocity times the exposure.
+    frames/s is 0.12; ``"auto"``: estimated from the blur once five frames moving fast enough
+    showed one) also removes the motion blur along the rows of frames corrected from motion:
+    each row's image velocity times the exposure.
 
     ``readout="columns"`` is for frames turned upright from a clip recorded turned a quarter
     (a phone held upright; OpenCV turns them so): read out along their columns, their ``k`` is
@@ -387,7 +388,7 @@ class VideoCorrector:
         readout_fraction: float | None = None,
         motion: bool = True,
         vertical: bool = False,
-        deblur_exposure: float | None = None,
+        deblur_exposure: float | Literal["auto"] | None = None,
         correct: bool = True,
         bgr: bool = False,
         max_pixels: int = ...,

@@ -113,8 +113,10 @@ pub struct ProcessOptions {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Deblur {
     /// Each row's exposure as a fraction of the frame interval, in (0, 1] (4 ms at 30
-    /// frames/s is 0.12).
-    pub exposure: f64,
+    /// frames/s is 0.12); `None`: estimated over the clip from the blur itself (the blur's
+    /// length over the motion between frames is the exposure, a constant of the camera's
+    /// settings like the readout), see [`VideoProcessor::exposure`].
+    pub exposure: Option<f64>,
     /// The Wiener filter's noise-to-signal ratio ([`crate::deblur::DEFAULT_NOISE_TO_SIGNAL`]).
     pub noise_to_signal: f64,
 }
@@ -132,11 +134,34 @@ impl Deblur {
             )));
         }
         Ok(Self {
-            exposure,
+            exposure: Some(exposure),
             noise_to_signal: crate::deblur::DEFAULT_NOISE_TO_SIGNAL,
         })
     }
+
+    /// Motion blur removal with the exposure estimated from the clip's blur, default filter.
+    pub fn estimated() -> Self {
+        Self {
+            exposure: None,
+            noise_to_signal: crate::deblur::DEFAULT_NOISE_TO_SIGNAL,
+        }
+    }
 }
+
+/// Frames moving at least this fast (pixels per frame) have their blur measured for the
+/// exposure's estimate: slower ones blur by less than [`crate::deblur::MIN_FOUND_BLUR`] at any
+/// exposure under half the frame interval.
+const BLUR_SAMPLE_MIN_SPEED: f64 = 8.0;
+
+/// Every this many frames one has its blur measured (about 2 ms a 1080p frame).
+const BLUR_SAMPLE_EVERY: u64 = 3;
+
+/// The exposure's estimate is the median of this many frames' at most, and needs at least
+/// [`MIN_BLUR_SAMPLES`].
+const MAX_BLUR_SAMPLES: usize = 60;
+
+/// Frames whose blur must be measured before the exposure is estimated.
+const MIN_BLUR_SAMPLES: usize = 5;
 
 /// Frames `unshear video` holds back while the readout is calibrated (2 s at 30 frames/s).
 pub const DEFAULT_CALIBRATION_WINDOW: usize = 60;
@@ -328,6 +353,8 @@ pub struct VideoProcessor<'a> {
     /// The frame size of a first pass ([`Self::analyse_frame`]).
     analysed_size: Option<(u32, u32)>,
     counts: SourceCounts,
+    /// Each measured frame's blur length over its motion: exposure samples.
+    blur_samples: Vec<f64>,
 }
 
 impl<'a> VideoProcessor<'a> {
@@ -360,6 +387,40 @@ impl<'a> VideoProcessor<'a> {
             motion_bands: Vec::new(),
             timing: (0, None),
             counts: SourceCounts::default(),
+            blur_samples: Vec::new(),
+        }
+    }
+
+    /// The exposure used to remove motion blur ([`ProcessOptions::deblur`]), as a fraction of
+    /// the frame interval: the one given, or the median of the frames' blur lengths over their
+    /// motion once five frames moving fast enough showed a blur
+    /// ([`crate::deblur::blur_length`]); `None` without deblurring or before.
+    pub fn exposure(&self) -> Option<f64> {
+        let d = self.options.deblur?;
+        d.exposure.or_else(|| {
+            (self.blur_samples.len() >= MIN_BLUR_SAMPLES)
+                .then(|| crate::stats::median(self.blur_samples.clone()))
+                .flatten()
+        })
+    }
+
+    /// Measures the blur of `frame`, which moved `dx` pixels since the last one, for the
+    /// exposure's estimate, when the exposure is asked to be estimated.
+    fn sample_blur(&mut self, frame: &GrayImage, index: u64, dx: f64) {
+        let wanted = self.options.deblur.is_some_and(|d| d.exposure.is_none());
+        if !wanted
+            || self.blur_samples.len() >= MAX_BLUR_SAMPLES
+            || !index.is_multiple_of(BLUR_SAMPLE_EVERY)
+            || dx.abs() < BLUR_SAMPLE_MIN_SPEED
+        {
+            return;
+        }
+        // The middle third of the rows (a pan changing speed within the frame blurs the top
+        // and bottom by other lengths); no longer than the motion (an exposure of at most
+        // the frame interval).
+        let h = frame.height();
+        if let Some(length) = crate::deblur::blur_length(frame, h / 3..2 * h / 3, dx.abs()) {
+            self.blur_samples.push(length / dx.abs());
         }
     }
 
@@ -421,6 +482,9 @@ impl<'a> VideoProcessor<'a> {
         self.motion = motion;
         self.anchors.advance(shift.as_ref().map(|s| (s.dx, s.dy)));
         let index = self.next_index;
+        if let Some(dx) = shift.as_ref().map(|s| s.dx) {
+            self.sample_blur(stored, index, dx);
+        }
         if let Some(s) = shift.as_ref().filter(|_| index > 0) {
             if self.motion_bands.len() < MAX_TIMING_PAIRS * 8 {
                 self.motion_bands
@@ -1111,12 +1175,12 @@ impl<'a> VideoProcessor<'a> {
             let interp = self.options.interpolation;
             // The blur is removed from the rows as read, before they are moved: a corrected
             // row's uncovered end is a sharp edge the blur never saw.
-            let frame = match self.options.deblur {
-                Some(d) => {
+            let frame = match self.options.deblur.zip(self.exposure()) {
+                Some((d, exposure)) => {
                     let lengths: Vec<f64> = m
                         .row_velocities
                         .iter()
-                        .map(|v| d.exposure * v.abs())
+                        .map(|v| exposure * v.abs())
                         .collect();
                     result.blur = lengths.get(lengths.len() / 2).copied();
                     frame.deblur_rows(&lengths, d.noise_to_signal)?
@@ -1214,6 +1278,8 @@ pub struct RunStats {
     pub calibration: Option<Calibration>,
     /// How the frames got their `k`.
     pub sources: SourceCounts,
+    /// The exposure motion blur was removed with ([`VideoProcessor::exposure`]).
+    pub exposure: Option<f64>,
 }
 
 /// Frames in flight between the reading, processing and writing threads.
@@ -1372,6 +1438,7 @@ fn run_pass(
         readout_fraction: processor.readout_fraction(),
         calibration: processor.calibration(),
         sources: processor.source_counts(),
+        exposure: processor.exposure(),
     })
 }
 
