@@ -147,6 +147,36 @@ thread_local! {
     static WIENER: std::cell::RefCell<RowWiener> = std::cell::RefCell::new(RowWiener::default());
 }
 
+/// [`deblur_rows`] on every row of an image, `lengths[y]` for row `y` (8- and 16-bit layouts;
+/// floating-point images are left as they are).
+///
+/// # Errors
+/// As [`deblur_rows`].
+pub fn deblur_image(img: &mut image::DynamicImage, lengths: &[f64], nsr: f64) -> Result<()> {
+    use image::DynamicImage as D;
+    if lengths.len() != img.height() as usize {
+        return Err(Error::InvalidArgument(format!(
+            "deblur: {} blur lengths for {} rows",
+            lengths.len(),
+            img.height()
+        )));
+    }
+    let w = img.width() as usize;
+    let c = usize::from(img.color().channel_count());
+    let (u8_max, u16_max) = (255.0, 65535.0);
+    match img {
+        D::ImageLuma8(b) => deblur_rows(b, w, c, lengths, nsr, u8_max),
+        D::ImageLumaA8(b) => deblur_rows(b, w, c, lengths, nsr, u8_max),
+        D::ImageRgb8(b) => deblur_rows(b, w, c, lengths, nsr, u8_max),
+        D::ImageRgba8(b) => deblur_rows(b, w, c, lengths, nsr, u8_max),
+        D::ImageLuma16(b) => deblur_rows(b, w, c, lengths, nsr, u16_max),
+        D::ImageLumaA16(b) => deblur_rows(b, w, c, lengths, nsr, u16_max),
+        D::ImageRgb16(b) => deblur_rows(b, w, c, lengths, nsr, u16_max),
+        D::ImageRgba16(b) => deblur_rows(b, w, c, lengths, nsr, u16_max),
+        _ => Ok(()),
+    }
+}
+
 /// A padded length's forward and inverse plans.
 type Plans = (Arc<dyn RealToComplex<f32>>, Arc<dyn ComplexToReal<f32>>);
 

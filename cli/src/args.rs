@@ -382,6 +382,19 @@ pub struct CorrectArgs {
     /// Row resampling.
     #[arg(help_heading = "Correction", long, value_enum, default_value_t = InterpArg::Linear)]
     pub interp: InterpArg,
+    /// Also remove the motion blur along the rows (whole-image correction): its length is
+    /// found from the zeros it leaves in the rows' spectrum, or given by --blur.
+    #[arg(help_heading = "Correction", long)]
+    pub deblur: bool,
+    /// The motion blur's length in pixels, for --deblur (1 to 256).
+    #[arg(
+        help_heading = "Correction",
+        long,
+        value_name = "PX",
+        requires = "deblur",
+        value_parser = blur_px
+    )]
+    pub blur: Option<f64>,
     /// Also write a PNG showing the face box, eyes, nostrils and estimated face axis (one input).
     #[arg(help_heading = "Input and output", long, value_name = "PNG")]
     pub annotate: Option<PathBuf>,
@@ -885,6 +898,19 @@ pub struct VideoArgs {
     pub deblur_noise: f64,
     #[command(flatten)]
     pub model: ModelArgs,
+}
+
+fn blur_px(s: &str) -> Result<f64, String> {
+    let v: f64 = s.parse().map_err(|e| format!("{e}"))?;
+    if (unshear::deblur::MIN_BLUR..=unshear::deblur::MAX_BLUR).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!(
+            "a blur of {v} px is outside [{}, {}]",
+            unshear::deblur::MIN_BLUR,
+            unshear::deblur::MAX_BLUR
+        ))
+    }
 }
 
 fn exposure_fraction(s: &str) -> Result<f64, String> {

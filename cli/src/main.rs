@@ -429,7 +429,8 @@ fn refuse_colliding_outputs(a: &CorrectArgs, inputs: Vec<Collected>) -> Vec<Coll
 
 /// What happened to one input of `correct`.
 enum Corrected {
-    Written(ImageReport, PathBuf),
+    /// The report, the output, and the motion blur removed (`--deblur`).
+    Written(ImageReport, PathBuf, Option<f64>),
     NoFace(ImageReport),
 }
 
@@ -473,11 +474,17 @@ fn correct_one(
             },
         )?;
     }
+    let blur = match (a.deblur, a.blur) {
+        (false, _) => None,
+        (true, Some(px)) => Some(px),
+        (true, None) => Unshear::find_blur(&img),
+    };
     let options = CorrectOptions {
         region: a.region.into(),
         canvas: a.canvas.into(),
         interpolation: a.interp.into(),
         k: a.k,
+        blur,
     };
     if !options.changes(&report) {
         return Ok(Corrected::NoFace(report));
@@ -497,7 +504,7 @@ fn correct_one(
             ..Default::default()
         },
     )?;
-    Ok(Corrected::Written(report, out))
+    Ok(Corrected::Written(report, out, blur))
 }
 
 /// Creates the folder an output goes into, if it does not exist; a file in the way is named as
@@ -562,13 +569,18 @@ fn correct(a: CorrectArgs) -> Result<bool> {
                 Err((p, _)) => display(p),
             };
             match result {
-                Ok(Corrected::Written(report, out)) => {
+                Ok(Corrected::Written(report, out, blur)) => {
                     if a.json {
-                        print_line(&JsonLine::ok(&file, &report).to_line());
+                        print_line(&JsonLine::ok(&file, &report).with_blur(blur).to_line());
                     } else {
                         let how = match a.k {
                             Some(k) => format!("k = {k:+.3} (given)"),
                             None => describe(&report),
+                        };
+                        let how = match (a.deblur, blur) {
+                            (true, Some(b)) => format!("{how}, motion blur of {b:.1} px removed"),
+                            (true, None) => format!("{how}, no motion blur found"),
+                            _ => how,
                         };
                         bar.suspend(|| print_line(&format!("{file}: {how} -> {}", out.display())));
                     }

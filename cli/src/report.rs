@@ -57,6 +57,9 @@ pub struct JsonLine {
     /// left out for the usual rows.
     #[serde(skip_serializing_if = "Option::is_none")]
     readout: Option<&'static str>,
+    /// `correct --deblur`: the motion blur removed, pixels; left out otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    blur: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     error: Option<String>,
 }
@@ -91,7 +94,16 @@ impl JsonLine {
             faces_disagree: report.faces_disagree,
             warnings: report.warnings.clone(),
             readout: (report.readout == Readout::Columns).then_some("columns"),
+            blur: None,
             error: None,
+        }
+    }
+
+    /// With the motion blur removed (`correct --deblur`).
+    pub fn with_blur(self, blur: Option<f64>) -> Self {
+        Self {
+            blur: blur.map(r4),
+            ..self
         }
     }
 
@@ -108,6 +120,7 @@ impl JsonLine {
             faces_disagree: false,
             warnings: Vec::new(),
             readout: None,
+            blur: None,
             error: Some(message),
         }
     }

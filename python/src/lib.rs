@@ -228,6 +228,7 @@ impl PyUnshear {
             canvas: canvas_of(canvas)?,
             interpolation: interp_of(interp)?,
             k,
+            blur: None,
         };
         let given = report.map(|r| r.inner.clone());
         let Input { image, layout } = self.input(py, image, bgr)?;
@@ -293,6 +294,7 @@ impl PyUnshear {
             canvas: canvas_of(canvas)?,
             interpolation: interp_of(interp)?,
             k,
+            blur: None,
         };
         let max_pixels = self.max_pixels;
         let inner = py.detach(|| -> PyResult<ImageReport> {

@@ -14,6 +14,14 @@ use crate::warp;
 pub(crate) const FACE_REGION_MARGIN: f64 = 0.3;
 
 impl Unshear {
+    /// The length (pixels) of a horizontal motion blur along `img`'s rows, from the zeros it
+    /// leaves in their spectrum ([`crate::deblur::blur_length`], from 4 px up to a quarter of
+    /// the width), for [`CorrectOptions::blur`]; `None` when no clear blur shows.
+    pub fn find_blur(img: &DynamicImage) -> Option<f64> {
+        let gray = crate::detect::to_gray_opencv(img);
+        crate::deblur::blur_length(&gray, 0..gray.height(), f64::from(gray.width()) / 4.0)
+    }
+
     /// Undoes the shear found in `report` (or `options.k`) on `img` (equation 6).
     ///
     /// Whole image: rows shifted by `-k (y - H/2)`. Faces: each face region (its box enlarged by
@@ -52,6 +60,20 @@ impl Unshear {
                     Error::InvalidArgument("no face found and no shear given".into())
                 })?;
                 let shear = Shear::about_middle(k, img.height());
+                if let Some(length) = options.blur {
+                    // The blur is removed from the rows as read, before they are moved.
+                    let mut sharp = img.clone();
+                    let lengths = vec![length; img.height() as usize];
+                    let nsr = crate::deblur::DEFAULT_NOISE_TO_SIGNAL;
+                    crate::deblur::deblur_image(&mut sharp, &lengths, nsr)?;
+                    let (out, _) = warp::try_remove_shear(
+                        &sharp,
+                        shear,
+                        options.interpolation,
+                        options.canvas,
+                    )?;
+                    return Ok(out);
+                }
                 Ok(warp::try_remove_shear(img, shear, options.interpolation, options.canvas)?.0)
             }
             Region::Face => {

@@ -265,6 +265,10 @@ pub struct CorrectOptions {
     pub interpolation: Interpolation,
     /// Use this shear instead of the estimate (for the whole image, or every face).
     pub k: Option<f64>,
+    /// Remove a horizontal motion blur this many pixels long from every row first (whole-image
+    /// correction; [`crate::deblur`]); [`Unshear::find_blur`](crate::Unshear::find_blur)
+    /// measures it.
+    pub blur: Option<f64>,
 }
 
 impl CorrectOptions {

@@ -459,20 +459,7 @@ impl VideoFrame {
                 VideoFrame::Yuv16(f)
             }
             VideoFrame::Image(mut img) => {
-                let w = img.width() as usize;
-                let c = usize::from(img.color().channel_count());
-                let (u8_max, u16_max) = (255.0, 65535.0);
-                match &mut img {
-                    DynamicImage::ImageLuma8(b) => rows(b, w, c, lengths, nsr, u8_max)?,
-                    DynamicImage::ImageLumaA8(b) => rows(b, w, c, lengths, nsr, u8_max)?,
-                    DynamicImage::ImageRgb8(b) => rows(b, w, c, lengths, nsr, u8_max)?,
-                    DynamicImage::ImageRgba8(b) => rows(b, w, c, lengths, nsr, u8_max)?,
-                    DynamicImage::ImageLuma16(b) => rows(b, w, c, lengths, nsr, u16_max)?,
-                    DynamicImage::ImageLumaA16(b) => rows(b, w, c, lengths, nsr, u16_max)?,
-                    DynamicImage::ImageRgb16(b) => rows(b, w, c, lengths, nsr, u16_max)?,
-                    DynamicImage::ImageRgba16(b) => rows(b, w, c, lengths, nsr, u16_max)?,
-                    _ => {}
-                }
+                crate::deblur::deblur_image(&mut img, lengths, nsr)?;
                 VideoFrame::Image(img)
             }
         })

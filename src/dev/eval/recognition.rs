@@ -392,6 +392,7 @@ fn run_probe(unshear: &Unshear, img: &DynamicImage, options: &RecognitionOptions
                     canvas: Canvas::Expand,
                     interpolation: Interpolation::Linear,
                     k: None,
+                    blur: None,
                 };
                 let fixed = Unshear::correct(&sheared, &report, &opts).ok()?;
                 features(&fixed).0
