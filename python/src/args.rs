@@ -102,6 +102,31 @@ pub fn deblur_exposure(value: &Bound<'_, PyAny>) -> PyResult<Option<unshear::vid
         .map_err(|e| PyValueError::new_err(e.to_string()))
 }
 
+/// ``blur`` of ``correct``: ``None`` (off), ``"auto"`` (found from the image: ``Some(None)``)
+/// or a length in pixels, 1 to 256.
+pub fn blur(value: &Bound<'_, PyAny>) -> PyResult<Option<Option<f64>>> {
+    if value.is_none() {
+        return Ok(None);
+    }
+    if let Ok(s) = value.extract::<String>() {
+        return match s.as_str() {
+            "auto" => Ok(Some(None)),
+            other => Err(PyValueError::new_err(format!(
+                "blur must be a length in pixels or \"auto\", got {other:?}"
+            ))),
+        };
+    }
+    let x = real("blur", value)?;
+    let (lo, hi) = (unshear::deblur::MIN_BLUR, unshear::deblur::MAX_BLUR);
+    if (lo..=hi).contains(&x) {
+        Ok(Some(Some(x)))
+    } else {
+        Err(PyValueError::new_err(format!(
+            "blur must be in [{lo}, {hi}] pixels, got {x}"
+        )))
+    }
+}
+
 pub fn hold(value: &Bound<'_, PyAny>) -> PyResult<f64> {
     let x = real("hold", value)?;
     if !(x.is_finite() && x >= 0.0) {

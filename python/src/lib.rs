@@ -209,8 +209,10 @@ impl PyUnshear {
         Ok(reports.into_iter().map(|inner| Report { inner }).collect())
     }
 
-    /// Removes the shear from ``image``: the estimated one (or ``report``'s), or ``k``.
-    #[pyo3(signature = (image, k = None, *, region = "image", canvas = "same", interp = "linear", report = None, bgr = false))]
+    /// Removes the shear from ``image``: the estimated one (or ``report``'s), or ``k``; with
+    /// ``blur`` (pixels, or ``"auto"``: found from the image) a motion blur along the rows
+    /// first.
+    #[pyo3(signature = (image, k = None, *, region = "image", canvas = "same", interp = "linear", report = None, bgr = false, blur = None))]
     #[allow(clippy::too_many_arguments)]
     fn correct<'py>(
         &self,
@@ -222,7 +224,9 @@ impl PyUnshear {
         interp: &str,
         report: Option<PyRef<'_, Report>>,
         bgr: bool,
+        blur: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
+        let blur = blur.map(args::blur).transpose()?.flatten();
         let options = CorrectOptions {
             region: region_of(region)?,
             canvas: canvas_of(canvas)?,
@@ -254,6 +258,8 @@ impl PyUnshear {
             if !options.changes(&report) {
                 return Err(NoFaceError::new_err(no_change_reason(&options)));
             }
+            let blur = blur.and_then(|b| b.or_else(|| unshear::Unshear::find_blur(&image)));
+            let options = CorrectOptions { blur, ..options };
             unshear::Unshear::correct(&image, &report, &options).map_err(to_pyerr)
         })?;
         to_array(py, result, layout)

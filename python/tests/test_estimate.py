@@ -286,3 +286,34 @@ def test_the_scenes_verticals_are_reported_without_faces() -> None:
     assert d["scene_k"] == report.scene_k and "k_source" not in d
     scene = unshear.Unshear(ruler="scene").estimate(sheared)
     assert scene.k_source == "scene" and scene.k is not None and abs(scene.k - 0.2) < 0.02
+
+
+def test_correct_removes_a_motion_blur() -> None:
+    """The example blurred along its rows by a box of 11 px: ``blur="auto"`` finds it and the
+    corrected picture is nearer the unblurred example corrected alike."""
+    img = unshear.read(EXAMPLE).astype(np.float64)
+    box = np.ones(11) / 11
+
+    def smear(rows: np.ndarray) -> np.ndarray:
+        return np.stack([np.convolve(r, box, mode="same") for r in rows])
+
+    if img.ndim == 2:
+        blurred = smear(img)
+    else:
+        blurred = np.stack([smear(img[..., c]) for c in range(img.shape[2])], -1)
+    blurred_u8 = blurred.round().clip(0, 255).astype(np.uint8)
+    u = unshear.Unshear()
+    ref = u.correct(img.astype(np.uint8), 0.316).astype(np.float64)
+    plain = u.correct(blurred_u8, 0.316).astype(np.float64)
+    fixed = u.correct(blurred_u8, 0.316, blur="auto").astype(np.float64)
+    given = u.correct(blurred_u8, 0.316, blur=11.0).astype(np.float64)
+    inside = (slice(20, -20), slice(40, -40))
+
+    def error(a: np.ndarray) -> float:
+        return float(np.abs(a[inside] - ref[inside]).mean())
+
+    assert error(fixed) < 0.8 * error(plain), (error(fixed), error(plain))
+    assert abs(error(given) - error(fixed)) < 0.1 * error(plain)
+    for bad in (0.5, 300.0, "sharp"):
+        with pytest.raises(ValueError, match="blur"):
+            u.correct(blurred_u8, 0.316, blur=bad)  # type: ignore[arg-type]

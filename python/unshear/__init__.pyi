@@ -255,6 +255,7 @@ class Unshear:
         interp: Interp = "linear",
         report: Report | None = None,
         bgr: bool = False,
+        blur: float | Literal["auto"] | None = None,
     ) -> Image:
         """Removes the shear from ``image`` and returns a new array of its layout and dtype.
 
@@ -262,10 +263,13 @@ class Unshear:
         to avoid estimating twice), otherwise estimated here. ``region="image"`` de-shears the
         whole image about its middle row; ``"face"`` each face region with its own shear.
         ``canvas``: ``"same"`` size, ``"expand"`` so nothing is cut off, or ``"crop"`` to valid
-        pixels. ``interp``: ``"linear"`` or ``"cubic"``.
+        pixels. ``interp``: ``"linear"`` or ``"cubic"``. ``blur``: a motion blur along the rows
+        removed first (whole-image correction), its length in pixels (1 to 256) or ``"auto"``
+        (found from the zeros it leaves in the rows' spectrum, as ``unshear correct --deblur``;
+        none found, none removed).
 
         Raises ``NoFaceError`` (a ``ValueError``) when no face gave an accepted estimate and no
-        ``k`` was given, ``ValueError`` for a NaN or infinite ``k``.
+        ``k`` was given, ``ValueError`` for a NaN or infinite ``k`` or a bad ``blur``.
         """
     def estimate_file(self, path: PathLike) -> Report:
         """``estimate`` of an image file, as ``unshear estimate FILE`` reports it: a photo its
