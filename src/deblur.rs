@@ -183,8 +183,9 @@ type Plans = (Arc<dyn RealToComplex<f32>>, Arc<dyn ComplexToReal<f32>>);
 /// The length (pixels, at most `max`) of a horizontal box blur over `rows` of `gray`, from the
 /// zeros it leaves in the rows' mean power spectrum: a box `L` long has zeros at the
 /// frequencies `j / L`, so the length whose zeros lie deepest below the spectrum between them
-/// (by a quarter of a unit of log power at least) is the blur. `None` when no length from [`MIN_FOUND_BLUR`]
-/// to `max` leaves clear zeros (a sharp picture, little texture) or the rows are too few.
+/// (by a quarter of a unit of log power at least) is the blur. `None` when no length from
+/// [`MIN_FOUND_BLUR`] to `max` leaves clear zeros (a sharp picture, little texture) or the rows
+/// are too few.
 pub fn blur_length(gray: &image::GrayImage, rows: std::ops::Range<u32>, max: f64) -> Option<f64> {
     let w = gray.width() as usize;
     let rows = rows.start..rows.end.min(gray.height());
@@ -321,11 +322,12 @@ impl RowWiener {
         self.spectrum.resize(n / 2 + 1, Complex32::default());
         self.scratch
             .resize(forward.get_scratch_len(), Complex32::default());
-        // The lengths match by construction; a failure would leave the row as it was loaded.
+        // The lengths match by construction; should a transform fail, the row stays as loaded.
         if forward
             .process_with_scratch(&mut self.padded, &mut self.spectrum, &mut self.scratch)
             .is_err()
         {
+            self.keep_loaded_row();
             return;
         }
         let gain = (1.0 + nsr) / n as f32;
@@ -344,10 +346,16 @@ impl RowWiener {
             .process_with_scratch(&mut self.spectrum, &mut self.padded, &mut self.scratch)
             .is_err()
         {
-            self.padded.clear();
-            self.padded.resize(self.start, 0.0);
-            self.padded.extend_from_slice(&self.row);
+            self.keep_loaded_row();
         }
+    }
+
+    /// Puts the loaded row back where [`Self::result`] reads it (a transform, which works in
+    /// place, failed).
+    fn keep_loaded_row(&mut self) {
+        self.padded.clear();
+        self.padded.resize(self.start, 0.0);
+        self.padded.extend_from_slice(&self.row);
     }
 }
 
