@@ -247,7 +247,8 @@ impl PyUnshear {
                 )));
             }
         }
-        let result = py.detach(|| -> Result<DynamicImage, PyErr> {
+        let reason = no_change_reason(&options);
+        let result = py.detach(|| -> Result<DynamicImage, Failure> {
             // The estimate only where it is needed: not for a whole-image correction by `k`.
             let needs_faces = options.region == Region::Face || options.k.is_none();
             let report = match given {
@@ -256,12 +257,13 @@ impl PyUnshear {
                 None => ImageReport::empty(image.width(), image.height()),
             };
             if !options.changes(&report) {
-                return Err(NoFaceError::new_err(no_change_reason(&options)));
+                return Err(Failure::NoFace(Box::new(report)));
             }
             let blur = blur.and_then(|b| b.or_else(|| unshear::Unshear::find_blur(&image)));
             let options = CorrectOptions { blur, ..options };
-            unshear::Unshear::correct(&image, &report, &options).map_err(to_pyerr)
-        })?;
+            unshear::Unshear::correct(&image, &report, &options).map_err(|e| to_pyerr(e).into())
+        });
+        let result = result.map_err(|f| f.into_pyerr(py, reason))?;
         to_array(py, result, layout)
     }
 
@@ -303,12 +305,13 @@ impl PyUnshear {
             blur: None,
         };
         let max_pixels = self.max_pixels;
-        let inner = py.detach(|| -> PyResult<ImageReport> {
+        let reason = no_change_reason(&options);
+        let inner = py.detach(|| -> Result<ImageReport, Failure> {
             let (img, metadata) =
                 imageio::read_image_with_metadata(&src, max_pixels).map_err(to_pyerr)?;
             let report = self.inner.estimate_photo(&img, &metadata);
             if !options.changes(&report) {
-                return Err(NoFaceError::new_err(no_change_reason(&options)));
+                return Err(Failure::NoFace(Box::new(report)));
             }
             let fixed = unshear::Unshear::correct(&img, &report, &options).map_err(to_pyerr)?;
             drop(img);
@@ -320,7 +323,8 @@ impl PyUnshear {
             };
             imageio::write_image_atomic(&fixed, &dst, write).map_err(to_pyerr)?;
             Ok(report)
-        })?;
+        });
+        let inner = inner.map_err(|f| f.into_pyerr(py, reason))?;
         Ok(Report { inner })
     }
 
@@ -361,6 +365,40 @@ fn read(
 }
 
 /// Why correcting with `report` would change nothing (see [`CorrectOptions::changes`]).
+/// Why a correction did not happen, from work done without the GIL: `NoFaceError` needs the GIL
+/// to carry its report.
+enum Failure {
+    /// Nothing to correct by: the report that found no face (or refused every estimate).
+    NoFace(Box<ImageReport>),
+    /// Any other error.
+    Error(PyErr),
+}
+
+impl From<PyErr> for Failure {
+    fn from(e: PyErr) -> Self {
+        Failure::Error(e)
+    }
+}
+
+impl Failure {
+    /// The Python exception: `NoFaceError` with the report as its `report` attribute (what
+    /// was found, for the caller's record, without estimating again).
+    fn into_pyerr(self, py: Python<'_>, reason: &'static str) -> PyErr {
+        match self {
+            Failure::Error(e) => e,
+            Failure::NoFace(inner) => {
+                let err = NoFaceError::new_err(reason);
+                let attached = Py::new(py, Report { inner: *inner })
+                    .and_then(|report| err.value(py).setattr("report", report));
+                match attached {
+                    Ok(()) => err,
+                    Err(e) => e,
+                }
+            }
+        }
+    }
+}
+
 fn no_change_reason(options: &CorrectOptions) -> &'static str {
     if options.k.is_some() {
         "no face found: a face-region correction needs a detected face"
@@ -465,7 +503,10 @@ fn _unshear(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(write, m)?)?;
     m.add_function(wrap_pyfunction!(distort, m)?)?;
     m.add_function(wrap_pyfunction!(options, m)?)?;
-    m.add("NoFaceError", m.py().get_type::<NoFaceError>())?;
+    let no_face = m.py().get_type::<NoFaceError>();
+    // The class's default; each raised error carries the report that found no face.
+    no_face.setattr("report", m.py().None())?;
+    m.add("NoFaceError", no_face)?;
     m.add("DEFAULT_MAX_PIXELS", DEFAULT_MAX_PIXELS)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

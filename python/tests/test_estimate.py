@@ -99,8 +99,10 @@ def test_refused_estimates_keep_their_measurement(face: np.ndarray) -> None:
     assert report.faces and all(f.k is None for f in report.faces)
     assert report.faces[0].refused == "low_confidence"
     assert abs(report.faces[0].k_measured - 0.3) < 0.05
-    with pytest.raises(unshear.NoFaceError):
+    with pytest.raises(unshear.NoFaceError) as raised:
         strict.correct(face)
+    # The error carries what was found, so a batch can record it without estimating again.
+    assert raised.value.report == report
     # Face regions too: every face refused leaves nothing to correct, not the image unchanged.
     with pytest.raises(unshear.NoFaceError, match="accepted estimate"):
         strict.correct(face, region="face")

@@ -107,6 +107,14 @@ def test_correct_file_keeps_exif_and_never_writes_over_its_input(
         corrector.correct_file(src, tmp_path / "out.gif")
     with pytest.raises(FileNotFoundError):
         corrector.correct_file(tmp_path / "missing.jpg", tmp_path / "x.jpg")
+    blank = tmp_path / "blank.png"
+    unshear.write(blank, np.full((90, 120, 3), 128, np.uint8))
+    with pytest.raises(unshear.NoFaceError) as raised:
+        corrector.correct_file(blank, tmp_path / "blank-out.png")
+    # Nothing written, and the error says what was found (here nothing) for the record.
+    assert not (tmp_path / "blank-out.png").exists()
+    assert raised.value.report == corrector.estimate_file(blank)
+    assert raised.value.report is not None and raised.value.report.k is None
 
 
 def vertical(image: np.ndarray, c: float) -> np.ndarray:

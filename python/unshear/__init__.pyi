@@ -50,6 +50,10 @@ Interp: TypeAlias = Literal["linear", "cubic"]
 class NoFaceError(ValueError):
     """No face gave an accepted estimate and no shear was given: nothing to correct by."""
 
+    report: Report | None
+    """What was found (the faces, and why each was refused), raised by ``Unshear.correct`` and
+    ``Unshear.correct_file``: the record of the image without estimating it again."""
+
 @final
 class Face:
     """One face: where it is, its landmarks and its shear.
