@@ -629,6 +629,36 @@ pub struct EvalShearArgs {
     /// (the paper's setting).
     #[arg(long, value_enum, value_name = "CANVAS", default_value_t = EvalCanvasArg::Crop)]
     pub canvas: EvalCanvasArg,
+    /// Make each frame as a panning camera would beyond one shear: the pan's speed changing
+    /// during the readout (the rows' offsets bend), a 2% vertical drift, motion blur along the
+    /// rows, sensor noise and JPEG; each face is scored against the shear at its eyes' row
+    /// (the `--camera-*` options set the camera; docs/accuracy.md).
+    #[arg(long)]
+    pub camera: bool,
+    /// With `--camera`: the readout's share of the frame interval.
+    #[arg(long, value_name = "RHO", default_value_t = 0.8)]
+    pub camera_readout: f64,
+    /// With `--camera`: the pan's relative change of speed per frame interval.
+    #[arg(
+        long,
+        value_name = "A",
+        default_value_t = 0.5,
+        allow_negative_numbers = true
+    )]
+    pub camera_acceleration: f64,
+    /// With `--camera`: the exposure in frame intervals (0.12: 1/250 s at 30 frames/s).
+    #[arg(long, value_name = "E", default_value_t = 0.12)]
+    pub camera_exposure: f64,
+    /// With `--camera`: the sensor noise's standard deviation, grey levels.
+    #[arg(long, value_name = "SIGMA", default_value_t = 2.0)]
+    pub camera_noise: f64,
+    /// With `--camera`: the JPEG quality of each frame (0: none).
+    #[arg(long, value_name = "Q", default_value_t = 85)]
+    pub camera_jpeg: u8,
+    /// Look for a motion blur along each frame's rows and remove it before the pipeline reads
+    /// the frame, as `correct --deblur` finds and removes it.
+    #[arg(long)]
+    pub deblur: bool,
     #[command(flatten)]
     pub model: ModelArgs,
 }

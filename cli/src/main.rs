@@ -747,6 +747,21 @@ fn eval_shear(a: EvalShearArgs) -> Result<()> {
             EvalCanvasArg::Crop => unshear::dev::eval::shear::EvalCanvas::Crop,
             EvalCanvasArg::Expand => unshear::dev::eval::shear::EvalCanvas::Expand,
         },
+        camera: a
+            .camera
+            .then(|| {
+                let camera = unshear::dev::eval::camera::CameraLike {
+                    readout_fraction: a.camera_readout,
+                    acceleration: a.camera_acceleration,
+                    exposure: a.camera_exposure,
+                    noise: a.camera_noise,
+                    jpeg_quality: a.camera_jpeg,
+                    ..Default::default()
+                };
+                camera.validate().map(|()| camera)
+            })
+            .transpose()?,
+        deblur: a.deblur,
     };
     let bar = progress_bar((faces.len() * a.k.len()) as u64);
     let result = evaluate_shear_in_context(&unshear, &faces, &options, a.context, || bar.inc(1));

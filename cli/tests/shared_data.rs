@@ -80,6 +80,8 @@ fn caltech_slice_tracks_the_shear() {
         face_free: false,
         roll_degrees: 0.0,
         canvas: unshear::dev::eval::shear::EvalCanvas::Crop,
+        camera: None,
+        deblur: false,
     };
     // Each image cropped to its faces' surroundings, as `unshear eval shear` does (whole photos
     // of up to 2300 px took four minutes here), in the frame a camera delivers.

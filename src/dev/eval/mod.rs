@@ -11,6 +11,7 @@
 //! Every harness runs the pipeline as a user would (detection included) and counts a face the
 //! detector misses as a failure, as a real system would.
 
+pub mod camera;
 pub mod nostrils;
 pub mod plot;
 pub mod recognition;

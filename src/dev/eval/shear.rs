@@ -34,6 +34,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 use serde::Serialize;
 
+use super::camera::{CameraFrame, CameraLike};
 use super::{fmt3, mean, pct};
 use crate::dev::dataset::{by_image, AnnotatedFace};
 use crate::error::{Error, Result};
@@ -85,6 +86,13 @@ pub struct ShearEvalOptions {
     pub roll_degrees: f64,
     /// The frame the pipeline is given.
     pub canvas: EvalCanvas,
+    /// Make each frame as a panning camera would beyond one shear (a pan changing speed during
+    /// the readout, a vertical drift, motion blur, noise, JPEG; [`CameraLike`]) and score each
+    /// face against the shear at its eyes' row; `None`: a plain shear.
+    pub camera: Option<CameraLike>,
+    /// Look for a motion blur along each frame's rows and remove it before the pipeline reads
+    /// the frame (`correct --deblur`'s estimate and deconvolution, [`Unshear::find_blur`]).
+    pub deblur: bool,
 }
 
 /// One photo with its annotated faces painted over ([`face_free`]), and what the pipeline
@@ -248,10 +256,17 @@ pub struct ShearSample {
     pub image: String,
     /// Index of the face among the image's annotations.
     pub face: usize,
-    /// The shear applied.
+    /// The shear applied (with a camera-like frame, its nominal shear: the middle row's).
     pub true_k: f64,
+    /// The shear at the face's eyes, which its estimate is scored against: `true_k`, or with
+    /// a camera-like frame the local shear at the eyes' row.
+    pub local_k: f64,
     /// Eye distance in the image, pixels.
     pub eye_distance: f64,
+    /// The motion blur at the face's eyes' row, pixels (camera-like frames).
+    pub true_blur: Option<f64>,
+    /// The blur found in the frame and removed (with [`ShearEvalOptions::deblur`]), pixels.
+    pub blur: Option<f64>,
     /// The frame cut the face: an eye lies outside it or within [`FRAME_MARGIN`] eye distances
     /// of its edge. Such a face is not scored (every other field is empty) and not counted as
     /// missed.
@@ -376,9 +391,10 @@ pub fn evaluate_shear_in_context(
             let rolled = options.roll_degrees != 0.0;
             // The camera's frame is taken around the sheared faces in the whole photo (their
             // surroundings as at k = 0 wherever the photo has them); a turned photo is turned
-            // after its context crop, as with the widened canvas, and then framed whole.
+            // after its context crop, as with the widened canvas, and then framed whole, as is
+            // a camera-like frame.
             let window_context = match options.canvas {
-                EvalCanvas::Crop if !rolled => context,
+                EvalCanvas::Crop if !rolled && options.camera.is_none() => context,
                 _ => 0.0,
             };
             let crop_first = if window_context > 0.0 { 0.0 } else { context };
@@ -398,6 +414,8 @@ pub fn evaluate_shear_in_context(
                 rotation,
                 canvas: options.canvas,
                 context: window_context,
+                camera: options.camera,
+                deblur: options.deblur,
             };
             let mut out: Found = (Vec::new(), Vec::new(), face_free);
             for &k in &options.shears {
@@ -466,6 +484,62 @@ struct Photo<'a> {
     rotation: Option<Rotation>,
     canvas: EvalCanvas,
     context: f64,
+    camera: Option<CameraLike>,
+    deblur: bool,
+}
+
+/// Where the photo's points land in the frame the pipeline is given.
+#[derive(Clone, Copy)]
+enum FrameMap {
+    /// A shear, and where the frame lies in the sheared photo.
+    Shear(Shear, Placement),
+    /// A camera-like frame.
+    Camera(CameraFrame),
+}
+
+impl FrameMap {
+    fn apply(&self, p: Point) -> Point {
+        match self {
+            Self::Shear(shear, placement) => placement.from_frame(shear.apply(p)),
+            Self::Camera(frame) => frame.apply(p),
+        }
+    }
+
+    fn invert(&self, q: Point) -> Point {
+        match self {
+            Self::Shear(shear, placement) => shear.invert(placement.to_frame(q)),
+            Self::Camera(frame) => frame.invert(q),
+        }
+    }
+
+    /// The shear at frame row `y`.
+    fn local_k(&self, k: f64, y: f64) -> f64 {
+        match self {
+            Self::Shear(..) => k,
+            Self::Camera(frame) => frame.local_k(y),
+        }
+    }
+
+    /// The motion blur at frame row `y`, pixels (`None`: none was made).
+    fn blur(&self, y: f64) -> Option<f64> {
+        match self {
+            Self::Shear(..) => None,
+            Self::Camera(frame) => Some(frame.blur(y)),
+        }
+    }
+}
+
+/// A noise seed fixed by the photo and the shear, so runs repeat.
+fn frame_seed(path: &Path, k: f64) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for b in path
+        .to_string_lossy()
+        .bytes()
+        .chain(k.to_bits().to_le_bytes())
+    {
+        h = (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3);
+    }
+    h
 }
 
 /// Where an eye may lie in a `width` x `height` frame for its face, `eye_distance` wide, to be
@@ -590,21 +664,27 @@ fn run_one(
         rotation,
         canvas,
         context,
+        camera,
+        deblur,
     } = *photo;
     let failed = |e: Error| format!("{}: {e}", path.display());
     let in_view = |p: Point| {
         let p = Point::new(p.x - origin.x, p.y - origin.y);
         rotation.map_or(p, |r| r.to_view(p))
     };
-    let (shear, sheared, placement) = match canvas {
-        EvalCanvas::Expand => {
+    let (map, sheared) = match (camera, canvas) {
+        (Some(camera), _) => {
+            let (frame, map) = camera.render(img, k, frame_seed(path, k)).map_err(failed)?;
+            (FrameMap::Camera(map), image::DynamicImage::ImageRgb8(frame))
+        }
+        (None, EvalCanvas::Expand) => {
             let shear = Shear::about_middle(k, img.height());
             let (sheared, placement) =
                 try_apply_shear(img, shear, Interpolation::Linear, Canvas::Expand)
                     .map_err(failed)?;
-            (shear, sheared, placement)
+            (FrameMap::Shear(shear, placement), sheared)
         }
-        EvalCanvas::Crop => {
+        (None, EvalCanvas::Crop) => {
             let faces: Vec<(Point, f64)> = annotated
                 .iter()
                 .map(|f| {
@@ -620,15 +700,29 @@ fn run_one(
                     )
                 })?;
             let sheared = sheared_window(img, shear, placement, w, h).map_err(failed)?;
-            (shear, sheared, placement)
+            (FrameMap::Shear(shear, placement), sheared)
         }
     };
     let start = Instant::now();
+    let (sheared, blur) = match deblur.then(|| Unshear::find_blur(&sheared)).flatten() {
+        Some(length) => {
+            let mut sharp = sheared;
+            let lengths = vec![length; sharp.height() as usize];
+            crate::deblur::deblur_image(
+                &mut sharp,
+                &lengths,
+                crate::deblur::DEFAULT_NOISE_TO_SIGNAL,
+            )
+            .map_err(failed)?;
+            (sharp, Some(length))
+        }
+        None => (sheared, None),
+    };
     // Boxes with their estimates, so a face that is detected but yields no estimate still counts
     // as detected.
     let found = unshear.detect_and_estimate(&Unshear::gray(&sheared));
     let millis = start.elapsed().as_secs_f64() * 1e3;
-    let moved = |p: Point| placement.from_frame(shear.apply(in_view(p)));
+    let moved = |p: Point| map.apply(in_view(p));
     let unmatched = found
         .iter()
         .filter_map(|found| {
@@ -639,7 +733,7 @@ fn run_one(
             if real {
                 return None;
             }
-            let c = shear.invert(placement.to_frame(b.center()));
+            let c = map.invert(b.center());
             let c = rotation.map_or(c, |r| r.to_input(c));
             let c = Point::new(c.x + origin.x, c.y + origin.y);
             Some(UnmatchedDetection {
@@ -655,12 +749,16 @@ fn run_one(
             let (re, le) = (moved(f.right_eye), moved(f.left_eye));
             let ed = f.eye_distance();
             let (w, h) = (sheared.width(), sheared.height());
+            let local_k = map.local_k(k, re.midpoint(le).y);
+            let true_blur = map.blur(re.midpoint(le).y);
             if !(in_frame(re, ed, w, h) && in_frame(le, ed, w, h)) {
                 return ShearSample {
                     image: path.display().to_string(),
                     face: i,
                     true_k: k,
+                    local_k,
                     eye_distance: ed,
+                    true_blur,
                     cut: true,
                     millis,
                     ..Default::default()
@@ -682,7 +780,10 @@ fn run_one(
                 image: path.display().to_string(),
                 face: i,
                 true_k: k,
+                local_k,
                 eye_distance: ed,
+                true_blur,
+                blur,
                 cut: false,
                 detected: hit.is_some(),
                 duplicates,
@@ -777,6 +878,13 @@ fn context_bounds(
     Some([x0, y0, x1, y1])
 }
 
+impl ShearSample {
+    /// How far the accepted estimate is from the shear at the face ([`Self::local_k`]).
+    pub fn error(&self) -> Option<f64> {
+        self.estimate.map(|e| (e - self.local_k).abs())
+    }
+}
+
 impl ShearEvalResult {
     /// The scored samples of one shear (the faces the frame cut left out).
     fn at(&self, k: f64) -> Vec<&ShearSample> {
@@ -809,7 +917,7 @@ impl ShearEvalResult {
             let at = self.at(k);
             let n = at.len();
             let est: Vec<f64> = at.iter().filter_map(|s| s.estimate).collect();
-            let err: Vec<f64> = est.iter().map(|e| (e - k).abs()).collect();
+            let err: Vec<f64> = at.iter().filter_map(|s| s.error()).collect();
             // Tracking: estimate at k minus the same face's estimate at 0, minus k.
             let tracking: Vec<f64> = at
                 .iter()
@@ -817,12 +925,12 @@ impl ShearEvalResult {
                     let z = zero
                         .iter()
                         .find(|z| z.image == s.image && z.face == s.face)?;
-                    Some((s.estimate? - z.estimate? - k).abs())
+                    Some((s.estimate? - z.estimate? - (s.local_k - z.local_k)).abs())
                 })
                 .collect();
             let oracle: Vec<f64> = at
                 .iter()
-                .filter_map(|s| s.oracle.map(|o| (o - k).abs()))
+                .filter_map(|s| s.oracle.map(|o| (o - s.local_k).abs()))
                 .collect();
             let _ = writeln!(
                 s,
@@ -867,10 +975,7 @@ impl ShearEvalResult {
                 .iter()
                 .filter(|s| s.measured.is_some() && s.estimate.is_none())
                 .count();
-            let accepted_err: Vec<f64> = at
-                .iter()
-                .filter_map(|s| s.estimate.map(|e| (e - k).abs()))
-                .collect();
+            let accepted_err: Vec<f64> = at.iter().filter_map(|s| s.error()).collect();
             let slope = (k != 0.0).then(|| {
                 median(
                     at.iter()
@@ -878,7 +983,7 @@ impl ShearEvalResult {
                             let z = zero
                                 .iter()
                                 .find(|z| z.image == s.image && z.face == s.face)?;
-                            Some((s.measured? - z.measured?) / k)
+                            Some((s.measured? - z.measured?) / (s.local_k - z.local_k))
                         })
                         .collect(),
                 )
@@ -897,10 +1002,7 @@ impl ShearEvalResult {
         );
         for &k in &self.shears {
             let at = self.at(k);
-            let accepted: Vec<f64> = at
-                .iter()
-                .filter_map(|s| s.estimate.map(|e| (e - k).abs()))
-                .collect();
+            let accepted: Vec<f64> = at.iter().filter_map(|s| s.error()).collect();
             let ruled = at
                 .iter()
                 .filter(|s| s.refused.as_deref().is_some_and(|r| r != "low_confidence"))
@@ -965,6 +1067,7 @@ impl ShearEvalResult {
             pct(located.iter().filter(|&&e| e <= 0.10).count(), all),
             pct(located.iter().filter(|&&e| e <= 0.25).count(), all),
         );
+        self.blur_line(&mut s);
         let mut times: Vec<f64> = self.samples.iter().map(|s| s.millis).collect();
         times.sort_by(f64::total_cmp);
         if let Some(m) = median(times) {
@@ -974,6 +1077,38 @@ impl ShearEvalResult {
             );
         }
         s
+    }
+
+    /// The blur made (camera-like frames) and found (`deblur`) at the scored faces; nothing
+    /// when neither.
+    fn blur_line(&self, s: &mut String) {
+        let scored: Vec<&ShearSample> = self.samples.iter().filter(|s| !s.cut).collect();
+        let made: Vec<f64> = scored.iter().filter_map(|s| s.true_blur).collect();
+        let found: Vec<f64> = scored.iter().filter_map(|s| s.blur).collect();
+        if made.is_empty() && found.is_empty() {
+            return;
+        }
+        // Of the faces with a blur of at least 4 px (the smallest `blur_length` looks for),
+        // the share whose frame gave a length, and its error against the blur at the eyes.
+        let blurred: Vec<&&ShearSample> = scored
+            .iter()
+            .filter(|s| s.true_blur.is_some_and(|b| b >= 4.0))
+            .collect();
+        let errors: Vec<f64> = blurred
+            .iter()
+            .filter_map(|s| Some((s.blur? - s.true_blur?).abs() / s.true_blur?))
+            .collect();
+        let _ = writeln!(
+            s,
+            "Motion blur: made at the faces' eyes, median {} px (max {}); found in {} of {} frames with at least 4 px at the face ({:.1}%), median relative error {}; found in {} frames in all",
+            fmt3(median(made.clone())),
+            fmt3(made.iter().copied().reduce(f64::max)),
+            errors.len(),
+            blurred.len(),
+            pct(errors.len(), blurred.len()),
+            fmt3(median(errors)),
+            found.len(),
+        );
     }
 
     /// The faces the frame cut per shear, and how the faces in the frame at every shear fared
@@ -1020,16 +1155,15 @@ impl ShearEvalResult {
         );
         for &k in &self.shears {
             let at = same(k);
-            let err = |e: &f64| (e - k).abs();
             let _ = writeln!(
                 s,
                 "| {k:+.2} | {} | {} | {} |",
                 at.iter().filter(|s| s.detected).count(),
                 at.iter()
-                    .filter(|s| s.estimate.as_ref().map(err).is_some_and(|e| e <= 0.05))
+                    .filter(|s| s.error().is_some_and(|e| e <= 0.05))
                     .count(),
                 at.iter()
-                    .filter(|s| s.estimate.as_ref().map(err).is_some_and(|e| e > 0.10))
+                    .filter(|s| s.error().is_some_and(|e| e > 0.10))
                     .count(),
             );
         }
@@ -1085,7 +1219,7 @@ impl ShearEvalResult {
         let points: Vec<(f64, f64)> = self
             .samples
             .iter()
-            .filter_map(|s| Some((s.true_k, s.estimate?)))
+            .filter_map(|s| Some((s.local_k, s.estimate?)))
             .collect();
         let save = |name: &str, img: image::RgbImage| {
             let path = dir.join(name);
@@ -1102,7 +1236,7 @@ impl ShearEvalResult {
             .map(|&k| {
                 self.at(k)
                     .iter()
-                    .filter_map(|s| Some(s.estimate? - k))
+                    .filter_map(|s| Some(s.estimate? - s.local_k))
                     .collect()
             })
             .collect();
@@ -1162,7 +1296,7 @@ impl ShearEvalResult {
                 opt(x.confidence),
                 x.refused.as_deref().unwrap_or(""),
                 x.estimate
-                    .is_some_and(|e| (e - x.true_k).abs() > GROSS_ERROR),
+                    .is_some_and(|e| (e - x.local_k).abs() > GROSS_ERROR),
                 x.cut
             );
         }
@@ -1179,6 +1313,7 @@ mod tests {
             image: "a".into(),
             face,
             true_k: k,
+            local_k: k,
             eye_distance: 50.0,
             detected: estimate.is_some(),
             estimate,
@@ -1296,6 +1431,7 @@ mod protocol_tests {
                     image: "a".into(),
                     face: f,
                     true_k: k,
+                    local_k: k,
                     eye_distance: 40.0,
                     detected: true,
                     estimate: Some(k),
@@ -1467,6 +1603,8 @@ mod protocol_tests {
             face_free: false,
             roll_degrees: 0.0,
             canvas: EvalCanvas::Crop,
+            camera: None,
+            deblur: false,
         };
         let unshear = Unshear::new(crate::Config::default()).expect("built-in models");
         let r = evaluate_shear_in_context(&unshear, &[f], &options, 3.0, || {});
@@ -1495,8 +1633,22 @@ mod protocol_tests {
             nose: None,
             mouth: None,
         };
-        let r = evaluate_shear_in_context(&unshear, &[f], &options, 3.0, || {});
+        let r = evaluate_shear_in_context(&unshear, std::slice::from_ref(&f), &options, 3.0, || {});
         assert!(r.samples.iter().all(|s| !s.cut));
+        // A camera-like frame scores each face against the shear at its eyes' row: here above
+        // the frame's middle row (one nominal face box around the eyes reaches further below
+        // them than above), where a speeding pan shears less than at the middle.
+        let options = ShearEvalOptions {
+            canvas: EvalCanvas::Crop,
+            camera: Some(CameraLike::default()),
+            ..options
+        };
+        let r = evaluate_shear_in_context(&unshear, &[f], &options, 1.0, || {});
+        assert!(r.unreadable.is_empty(), "{:?}", r.unreadable);
+        let at = |k: f64| r.samples.iter().find(|s| s.true_k == k).expect("sample");
+        assert_eq!(at(0.0).local_k, 0.0);
+        let local = at(0.4).local_k;
+        assert!(local > 0.4 * 0.8 && local < 0.4, "{local}");
     }
 
     #[test]
