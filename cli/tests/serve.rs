@@ -680,3 +680,109 @@ fn the_page_shows_the_clis_k_in_a_browser() {
     let picture = image::open(&shot).expect("a screenshot");
     assert_eq!((picture.width(), picture.height()), (900, 1000));
 }
+
+/// The server's resident memory now and at its peak, kB (Linux: /proc).
+fn memory_kb(server: &Server) -> Option<(u64, u64)> {
+    let status = std::fs::read_to_string(format!("/proc/{}/status", server.child.id())).ok()?;
+    let field = |name: &str| {
+        status
+            .lines()
+            .find_map(|l| l.strip_prefix(name))
+            .and_then(|v| v.split_whitespace().next()?.parse().ok())
+    };
+    Some((field("VmRSS:")?, field("VmHWM:")?))
+}
+
+/// The median of three timings of `f`.
+fn median_of_3(mut f: impl FnMut()) -> Duration {
+    let mut times: Vec<Duration> = (0..3)
+        .map(|_| {
+            let t = Instant::now();
+            f();
+            t.elapsed()
+        })
+        .collect();
+    times.sort();
+    times[1]
+}
+
+/// The figures of docs/serve.md (run with `--release -- --ignored --nocapture`): the start
+/// time, a 12-megapixel JPEG through the API against the CLI, and the load test, 200 requests
+/// from 8 clients on loopback, every answer checked, the memory before and after.
+#[test]
+#[ignore = "a measurement: cargo test --release -p unshear-cli --test serve -- --ignored --nocapture"]
+fn measure_start_12_megapixels_and_load() {
+    let server = Server::start(&[]);
+    let t = Instant::now();
+    server.assert_up();
+    println!(
+        "start: URL printed after {:.0} ms, first answer {:.1} ms later",
+        server.started_in.as_secs_f64() * 1e3,
+        t.elapsed().as_secs_f64() * 1e3
+    );
+    // A 12-megapixel JPEG: the example enlarged to 4480 x 2736.
+    let dir = tempfile::tempdir().expect("temp");
+    let photo = dir.path().join("12mp.jpg");
+    image::load_from_memory(&example_bytes())
+        .expect("decode")
+        .resize_exact(4480, 2736, image::imageops::FilterType::CatmullRom)
+        .to_rgb8()
+        .save(&photo)
+        .expect("save");
+    let bytes = std::fs::read(&photo).expect("read");
+    let cli = median_of_3(|| {
+        cli_estimate(&photo);
+    });
+    let mut api_k = serde_json::Value::Null;
+    let api = median_of_3(|| {
+        let r = server.post("/api/estimate", "image/jpeg", &bytes);
+        assert_eq!(r.status, 200, "{}", r.text());
+        api_k = r.json()["k"].clone();
+    });
+    assert_eq!(api_k, cli_estimate(&photo)["k"]);
+    println!(
+        "12 MP JPEG ({} bytes, k = {api_k}): CLI estimate {:.2} s, API {:.2} s, ratio {:.2}",
+        bytes.len(),
+        cli.as_secs_f64(),
+        api.as_secs_f64(),
+        api.as_secs_f64() / cli.as_secs_f64()
+    );
+    // The load test.
+    let example = std::sync::Arc::new(example_bytes());
+    let load = |requests_per_client: usize| {
+        let t = Instant::now();
+        let clients: Vec<_> = (0..8)
+            .map(|i| {
+                let (bytes, addr) = (example.clone(), server.addr);
+                std::thread::spawn(move || {
+                    for j in 0..requests_per_client {
+                        let path = ["/api/estimate", "/api/correct"][(i + j) % 2];
+                        let r =
+                            request(addr, "POST", path, &[("Content-Type", "image/png")], &bytes);
+                        assert_eq!(r.status, 200, "{}", r.text());
+                        let k = match r.header("x-unshear-k") {
+                            Some(k) => k.to_string(),
+                            None => format!("{:.4}", r.json()["k"].as_f64().expect("k")),
+                        };
+                        assert_eq!(k, "0.3161");
+                    }
+                })
+            })
+            .collect();
+        for c in clients {
+            c.join().expect("every answer right");
+        }
+        t.elapsed()
+    };
+    load(1);
+    let before = memory_kb(&server);
+    let took = load(25);
+    let after = memory_kb(&server);
+    println!(
+        "load: 200 requests from 8 clients in {:.2} s ({:.0} requests/s), all answered right; \
+         resident memory (now, peak) kB before {before:?}, after {after:?}",
+        took.as_secs_f64(),
+        200.0 / took.as_secs_f64()
+    );
+    server.assert_up();
+}

@@ -64,6 +64,7 @@ function addFiles(files) {
     cards.push(card);
     results.append(card.root);
     $("#bar").hidden = false;
+    document.body.classList.add("has-results");
     pending += 1;
     setStatus();
     // One photo at a time from this page: the server has its own limit for all clients.
@@ -300,6 +301,7 @@ $("#clear").addEventListener("click", () => {
   cards.length = 0;
   results.textContent = "";
   $("#bar").hidden = true;
+  document.body.classList.remove("has-results");
 });
 
 // `?demo=example`: put the bundled example photo through the page (the browser test uses it).
