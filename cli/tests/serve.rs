@@ -139,7 +139,10 @@ fn request(
     headers: &[(&str, &str)],
     body: &[u8],
 ) -> Reply {
-    let mut head = format!("{method} {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n");
+    let mut head = format!("{method} {path} HTTP/1.1\r\nConnection: close\r\n");
+    if !headers.iter().any(|(n, _)| n.eq_ignore_ascii_case("host")) {
+        head.push_str(&format!("Host: {addr}\r\n"));
+    }
     for (n, v) in headers {
         head.push_str(&format!("{n}: {v}\r\n"));
     }
@@ -430,6 +433,15 @@ fn bad_inputs_are_typed_4xx_errors() {
         .get("/api/estimate")
         .assert_error(405, "method_not_allowed");
     server.get("/etc/passwd").assert_error(404, "not_found");
+    // A page elsewhere whose name was made to point here (DNS rebinding) is refused.
+    request(
+        server.addr,
+        "GET",
+        "/api/health",
+        &[("Host", "evil.example")],
+        &[],
+    )
+    .assert_error(403, "forbidden_host");
     server.assert_up();
 }
 

@@ -44,6 +44,10 @@ pub struct Server {
     pub jobs: usize,
     /// `--wait`: how long a request waits for a worker before a 503.
     pub wait: Duration,
+    /// Whether only this machine can connect (a loopback `--bind`): requests must then name
+    /// a loopback host, so that a web site whose name is made to point at 127.0.0.1 (DNS
+    /// rebinding) cannot use the server from a browser.
+    pub loopback: bool,
 }
 
 /// The server and its workers, shared by the handlers.
@@ -70,7 +74,45 @@ pub fn router(server: Server) -> Router {
         .fallback(not_found)
         .method_not_allowed_fallback(method_not_allowed)
         .layer(DefaultBodyLimit::max(limit))
+        .layer(axum::middleware::from_fn_with_state(
+            server.loopback,
+            check_host,
+        ))
         .with_state(Arc::new(Shared { server, workers }))
+}
+
+/// Refuses (403) a request to a loopback server whose `Host` is not a loopback name.
+async fn check_host(
+    State(loopback): State<bool>,
+    request: Request,
+    next: axum::middleware::Next,
+) -> Response {
+    let host = request
+        .headers()
+        .get(header::HOST)
+        .and_then(|h| h.to_str().ok())
+        .unwrap_or_default();
+    if loopback && !is_loopback_host(host) {
+        return ApiError::new(
+            StatusCode::FORBIDDEN,
+            "forbidden_host",
+            format!("Host {host}: this server answers only to localhost, 127.0.0.1 or [::1]"),
+        )
+        .into_response();
+    }
+    next.run(request).await
+}
+
+/// Whether `host` (a `Host` header: a name or address and maybe a port) names this machine.
+fn is_loopback_host(host: &str) -> bool {
+    let name = match host.strip_prefix('[') {
+        Some(v6) => v6.split(']').next().unwrap_or_default(),
+        None => host.rsplit_once(':').map_or(host, |(name, _)| name),
+    };
+    name.eq_ignore_ascii_case("localhost")
+        || name
+            .parse::<std::net::IpAddr>()
+            .is_ok_and(|ip| ip.is_loopback())
 }
 
 /// A failed request: its status, a stable code and a message in words.
@@ -637,6 +679,30 @@ mod tests {
         assert_eq!(label(Some("a\nb.png")), "ab.png");
         assert_eq!(label(Some("dir/")), "upload");
         assert_eq!(label(None), "upload");
+    }
+
+    #[test]
+    fn only_loopback_hosts_are_loopback() {
+        for host in [
+            "localhost",
+            "localhost:8080",
+            "127.0.0.1:1",
+            "127.1.2.3",
+            "[::1]:80",
+            "[::1]",
+        ] {
+            assert!(is_loopback_host(host), "{host}");
+        }
+        for host in [
+            "",
+            "evil.example",
+            "evil.example:8080",
+            "10.0.0.1:80",
+            "[::2]:80",
+            "localhost.evil",
+        ] {
+            assert!(!is_loopback_host(host), "{host}");
+        }
     }
 
     #[test]

@@ -36,6 +36,7 @@ pub fn serve(a: ServeArgs) -> Result<()> {
         max_upload: a.max_upload,
         jobs,
         wait: Duration::from_secs_f64(a.wait),
+        loopback: a.bind.is_loopback(),
     };
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_io()
@@ -99,7 +100,9 @@ fn open_browser(url: &str) {
         .stdout(std::process::Stdio::null())
         .stderr(std::process::Stdio::null())
         .spawn();
-    if let Err(e) = opened {
-        eprintln!("unshear: warning: could not open a browser ({e}): open {url} by hand");
+    match opened {
+        // Reaped on a thread of its own (the opener usually returns at once).
+        Ok(mut child) => drop(std::thread::spawn(move || child.wait())),
+        Err(e) => eprintln!("unshear: warning: could not open a browser ({e}): open {url} by hand"),
     }
 }
