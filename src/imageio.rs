@@ -1021,9 +1021,19 @@ mod tests {
                 metadata: meta.clone(),
                 ..WriteOptions::default()
             };
+            let in_memory = encode_image(&upright, &path, &opts).unwrap();
             write_image_atomic(&upright, &path, opts).unwrap();
             let (back, read) = read_image_with_metadata(&path, DEFAULT_MAX_PIXELS).unwrap();
             assert_eq!(back.dimensions(), (16, 32), "{name}: not turned again");
+            // In memory: the same bytes as the file, read back the same.
+            assert_eq!(
+                in_memory,
+                std::fs::read(&path).unwrap(),
+                "{name}: encode_image"
+            );
+            let (_, from_memory) =
+                read_image_with_metadata_from_memory(&in_memory, DEFAULT_MAX_PIXELS).unwrap();
+            assert_eq!(from_memory, read, "{name}: read from memory");
             if name == "out.tif" {
                 // TIFF: the encoder stores the profile (checked with Pillow) but the decoder does
                 // not read it back, and stores no EXIF block.
