@@ -171,13 +171,21 @@ function showReport(card, report) {
     correctedBlob(card, 0, "jpeg").then(({ blob }) => (before.src = url(card, blob)), () => {});
   }
   wire(card);
-  setK(card, report.k === null ? 0 : report.k, report.k !== null);
+  if (report.k === null) {
+    // Nothing to correct until k is set by hand.
+    setK(card, 0, false);
+    card.k = null;
+    card.el(".download").disabled = true;
+  } else {
+    setK(card, report.k);
+  }
 }
 
 function setK(card, k, preview = true) {
   card.k = k;
   card.el(".k-range").value = String(k);
   card.el(".k-number").value = k.toFixed(3);
+  card.el(".download").disabled = false;
   if (preview) schedulePreview(card);
 }
 
@@ -187,6 +195,7 @@ function wire(card) {
   range.addEventListener("input", () => {
     card.k = Number(range.value);
     number.value = card.k.toFixed(3);
+    card.el(".download").disabled = false;
     schedulePreview(card);
   });
   number.addEventListener("change", () => {
