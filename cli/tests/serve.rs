@@ -640,7 +640,8 @@ fn the_page_is_built_in() {
 }
 
 /// Headless Chromium opens `/?demo=example`: the page puts the bundled example through the API
-/// and shows the CLI's k, +0.316; a screenshot of it is made.
+/// and shows the CLI's k, +0.316; a screenshot of it is made. `/?demo=bad`: a photo without a
+/// face and a text file each get their message.
 #[test]
 fn the_page_shows_the_clis_k_in_a_browser() {
     let Some(chromium) = ["chromium", "chromium-browser", "google-chrome"]
@@ -658,7 +659,7 @@ fn the_page_shows_the_clis_k_in_a_browser() {
     };
     let server = Server::start(&[]);
     let dir = tempfile::tempdir().expect("temp");
-    let browser = |extra: &[&str]| {
+    let browser = |extra: &[&str], demo: &str| {
         let out = Command::new(chromium)
             .args([
                 "--headless",
@@ -674,7 +675,7 @@ fn the_page_shows_the_clis_k_in_a_browser() {
                 dir.path().join("profile").display()
             ))
             .args(extra)
-            .arg(server.url("/?demo=example"))
+            .arg(server.url(&format!("/?demo={demo}")))
             .current_dir(dir.path())
             .stderr(Stdio::null())
             .output()
@@ -682,15 +683,23 @@ fn the_page_shows_the_clis_k_in_a_browser() {
         assert!(out.status.success(), "chromium failed");
         String::from_utf8_lossy(&out.stdout).into_owned()
     };
-    let dom = browser(&["--dump-dom"]);
+    let dom = browser(&["--dump-dom"], "example");
     assert!(
         dom.contains("data-k=\"+0.316\">k = +0.316<"),
         "the page shows k = +0.316: {dom}"
     );
     let shot = dir.path().join("page.png");
-    browser(&[&format!("--screenshot={}", shot.display())]);
+    browser(&[&format!("--screenshot={}", shot.display())], "example");
     let picture = image::open(&shot).expect("a screenshot");
     assert_eq!((picture.width(), picture.height()), (900, 1000));
+    // A photo without a face and a file that is no image: each says so in words.
+    let dom = browser(&["--dump-dom"], "bad");
+    assert!(dom.contains(">No usable face<"), "{dom}");
+    assert!(dom.contains("no face found. Set k by hand"), "{dom}");
+    assert!(
+        dom.contains("This file could not be read as an image."),
+        "{dom}"
+    );
 }
 
 /// The server's resident memory now and at its peak, kB (Linux: /proc).

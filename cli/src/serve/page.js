@@ -313,8 +313,24 @@ $("#clear").addEventListener("click", () => {
   document.body.classList.remove("has-results");
 });
 
-// `?demo=example`: put the bundled example photo through the page (the browser test uses it).
-if (new URLSearchParams(location.search).get("demo") === "example") {
+// `?demo=example`: put the bundled example photo through the page; `?demo=bad`: a photo
+// without a face and a text file named as a photo (the browser test uses both).
+const demo = new URLSearchParams(location.search).get("demo");
+if (demo === "bad") {
+  const canvas = document.createElement("canvas");
+  canvas.width = 160;
+  canvas.height = 120;
+  const g = canvas.getContext("2d");
+  g.fillStyle = "#888";
+  g.fillRect(0, 0, canvas.width, canvas.height);
+  canvas.toBlob((blob) => {
+    addFiles([
+      new File([blob], "blank.png", { type: "image/png" }),
+      new File(["not a photo\n"], "notes.jpg", { type: "image/jpeg" }),
+    ]);
+  }, "image/png");
+}
+if (demo === "example") {
   pending += 1;
   setStatus();
   fetch("/example.png")
