@@ -761,6 +761,33 @@ fn measure_start_12_megapixels_and_load() {
         api_k = r.json()["k"].clone();
     });
     assert_eq!(api_k, cli_estimate(&photo)["k"]);
+    // Eight clients sending the 12-MP photo at once, twice each: the peak memory is bounded by
+    // the workers (--jobs), not by the clients.
+    let photo_bytes = std::sync::Arc::new(bytes.clone());
+    let clients: Vec<_> = (0..8)
+        .map(|_| {
+            let (bytes, addr) = (photo_bytes.clone(), server.addr);
+            std::thread::spawn(move || {
+                for _ in 0..2 {
+                    let r = request(
+                        addr,
+                        "POST",
+                        "/api/estimate",
+                        &[("Content-Type", "image/jpeg")],
+                        &bytes,
+                    );
+                    assert_eq!(r.status, 200, "{}", r.text());
+                }
+            })
+        })
+        .collect();
+    for c in clients {
+        c.join().expect("every 12-MP answer right");
+    }
+    println!(
+        "8 clients x 2 requests of the 12-MP photo: resident memory (now, peak) kB {:?}",
+        memory_kb(&server)
+    );
     println!(
         "12 MP JPEG ({} bytes, k = {api_k}): CLI estimate {:.2} s, API {:.2} s, ratio {:.2}",
         bytes.len(),
