@@ -115,9 +115,21 @@ fn check_complete(bytes: &[u8], path: &Path) -> Result<()> {
 /// # Errors
 /// As [`read_image`].
 pub fn read_image_from_memory(bytes: &[u8], max_pixels: u64) -> Result<DynamicImage> {
+    read_image_with_metadata_from_memory(bytes, max_pixels).map(|(img, _)| img)
+}
+
+/// [`read_image_with_metadata`] from bytes in memory (an upload, say): the same checks and
+/// limits, the same [`Metadata`]; errors name the path `<memory>`.
+///
+/// # Errors
+/// As [`read_image`].
+pub fn read_image_with_metadata_from_memory(
+    bytes: &[u8],
+    max_pixels: u64,
+) -> Result<(DynamicImage, Metadata)> {
     check_complete(bytes, Path::new("<memory>"))?;
     let open = || ImageReader::new(Cursor::new(bytes)).with_guessed_format();
-    decode(open, max_pixels, Path::new("<memory>")).map(|(img, _)| img)
+    decode(open, max_pixels, Path::new("<memory>"))
 }
 
 /// Decode with the size check; `open` makes a fresh reader (a second one is needed only when the
@@ -518,6 +530,32 @@ fn write_with_metadata(
     img.write_with_encoder(encoder)
 }
 
+/// `img` encoded in memory as [`write_image_atomic`] would write it to a file named `name`
+/// (the format from its extension, the same conversions, `opts.metadata` kept where the format
+/// stores it); nothing touches the file system, so `opts.overwrite` and `opts.protected` play
+/// no part.
+///
+/// # Errors
+/// [`Error::Refused`] for an unsupported extension, [`Error::Image`] if encoding fails.
+pub fn encode_image(img: &DynamicImage, name: &Path, opts: &WriteOptions) -> Result<Vec<u8>> {
+    let format = out_format(name).ok_or_else(|| unknown_format(name))?;
+    let mut out = Cursor::new(Vec::new());
+    encode(img, format, opts, &mut out).map_err(|source| Error::Image {
+        path: name.to_path_buf(),
+        source,
+    })?;
+    Ok(out.into_inner())
+}
+
+/// The refusal of an output name whose extension names no format written.
+fn unknown_format(path: &Path) -> Error {
+    Error::Refused {
+        path: path.to_path_buf(),
+        reason: "unknown output format (use .jpg, .png, .pgm, .ppm, .pnm, .bmp, .tif or .webp)"
+            .to_owned(),
+    }
+}
+
 /// Whether `a` and `b` name the same existing file: equal canonical paths, or (on Unix) the same
 /// device and inode, which also catches hard links.
 fn same_file(a: &Path, b: &Path) -> bool {
@@ -549,11 +587,7 @@ fn same_file(a: &Path, b: &Path) -> bool {
 /// `overwrite` is false, or has an unsupported extension; [`Error::Image`] if encoding fails;
 /// [`Error::Io`] for file-system errors.
 pub fn write_image_atomic(img: &DynamicImage, path: &Path, opts: WriteOptions) -> Result<()> {
-    let format = out_format(path).ok_or_else(|| Error::Refused {
-        path: path.to_path_buf(),
-        reason: "unknown output format (use .jpg, .png, .pgm, .ppm, .pnm, .bmp, .tif or .webp)"
-            .to_owned(),
-    })?;
+    let format = out_format(path).ok_or_else(|| unknown_format(path))?;
     write_atomic(path, &opts, |w| {
         encode(img, format, &opts, w).map_err(|source| Error::Image {
             path: path.to_path_buf(),
@@ -987,9 +1021,19 @@ mod tests {
                 metadata: meta.clone(),
                 ..WriteOptions::default()
             };
+            let in_memory = encode_image(&upright, &path, &opts).unwrap();
             write_image_atomic(&upright, &path, opts).unwrap();
             let (back, read) = read_image_with_metadata(&path, DEFAULT_MAX_PIXELS).unwrap();
             assert_eq!(back.dimensions(), (16, 32), "{name}: not turned again");
+            // In memory: the same bytes as the file, read back the same.
+            assert_eq!(
+                in_memory,
+                std::fs::read(&path).unwrap(),
+                "{name}: encode_image"
+            );
+            let (_, from_memory) =
+                read_image_with_metadata_from_memory(&in_memory, DEFAULT_MAX_PIXELS).unwrap();
+            assert_eq!(from_memory, read, "{name}: read from memory");
             if name == "out.tif" {
                 // TIFF: the encoder stores the profile (checked with Pillow) but the decoder does
                 // not read it back, and stores no EXIF block.

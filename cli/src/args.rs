@@ -34,6 +34,46 @@ pub enum Command {
     Eval(EvalArgs),
     /// Render a rolling-shutter clip (a moving view over photos, with motion blur) and its truth.
     Simulate(crate::simulate::SimulateArgs),
+    /// Serve a local web page and JSON API: drop photos, compare, adjust and download
+    /// (docs/serve.md).
+    Serve(ServeArgs),
+}
+
+/// `unshear serve`.
+#[derive(Debug, Args)]
+pub struct ServeArgs {
+    /// Port to listen on [default: 8080, or a free port when 8080 is taken; 0: a free port].
+    #[arg(help_heading = "Server", long, value_name = "PORT")]
+    pub port: Option<u16>,
+    /// Address to listen on. Anything but a loopback address lets other machines use the
+    /// server (a warning is printed).
+    #[arg(
+        help_heading = "Server",
+        long,
+        value_name = "ADDR",
+        default_value = "127.0.0.1"
+    )]
+    pub bind: std::net::IpAddr,
+    /// Open the page in the default browser once listening.
+    #[arg(help_heading = "Server", long)]
+    pub open: bool,
+    /// Refuse uploads larger than this many bytes (413), checked while the upload is read.
+    #[arg(help_heading = "Server", long, value_name = "BYTES", default_value_t = 64 << 20,
+          value_parser = clap::value_parser!(u64).range(1..))]
+    pub max_upload: u64,
+    /// Seconds a request waits for one of the --jobs workers before it is answered 503 (busy)
+    /// with a Retry-After header.
+    #[arg(
+        help_heading = "Server",
+        long,
+        value_name = "SECS",
+        default_value_t = 30.0
+    )]
+    pub wait: f64,
+    /// Faces, limits and threads as for `estimate` (`--jobs`: images worked on at once, and
+    /// the worker threads; `--max-pixels`: checked before decoding each upload).
+    #[command(flatten)]
+    pub model: ModelArgs,
 }
 
 /// Models and limits shared by the commands that look at faces.

@@ -10,6 +10,7 @@ mod ffmpeg;
 mod interrupt;
 mod models;
 mod report;
+mod serve;
 mod simulate;
 mod video;
 
@@ -46,6 +47,7 @@ fn main() -> ExitCode {
         Command::Video(a) => video::video(a).map(|()| true),
         Command::Calibrate(a) => video::calibrate(a),
         Command::Simulate(a) => simulate::simulate(a).map(|()| true),
+        Command::Serve(a) => serve::serve(a).map(|()| true),
         Command::Train(a) => train(a).map(|()| true),
         Command::Eval(e) => match e.what {
             EvalCommand::Shear(a) => eval_shear(a).map(|()| true),
@@ -427,6 +429,16 @@ fn refuse_colliding_outputs(a: &CorrectArgs, inputs: Vec<Collected>) -> Vec<Coll
         .collect()
 }
 
+/// The `--annotate` picture of `img`: the faces' boxes, eyes, nostrils, mouths and axes, and
+/// the scene's verticals when they were read.
+pub(crate) fn annotated(img: &image::DynamicImage, report: &ImageReport) -> image::DynamicImage {
+    let mut picture = unshear::annotate::draw_annotations(img, &report.marks());
+    if let Some(scene) = &report.scene {
+        unshear::annotate::draw_scene_segments(&mut picture, scene);
+    }
+    image::DynamicImage::ImageRgb8(picture)
+}
+
 /// What happened to one input of `correct`.
 enum Corrected {
     /// The report, the output, and the motion blur removed (`--deblur`).
@@ -460,12 +472,8 @@ fn correct_one(
     let report = unshear.estimate_photo(&img, &metadata);
     if let Some(annotate) = &a.annotate {
         create_parent(annotate)?;
-        let mut picture = unshear::annotate::draw_annotations(&img, &report.marks());
-        if let Some(scene) = &report.scene {
-            unshear::annotate::draw_scene_segments(&mut picture, scene);
-        }
         write_atomic(
-            &image::DynamicImage::ImageRgb8(picture),
+            &annotated(&img, &report),
             annotate,
             WriteOptions {
                 overwrite: a.force,

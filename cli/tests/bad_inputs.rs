@@ -320,25 +320,6 @@ fn cmyk_and_ycck_jpegs_are_converted_to_rgb() {
 }
 
 /// A PNG chunk with a correct CRC.
-fn png_chunk(kind: &[u8; 4], data: &[u8]) -> Vec<u8> {
-    let mut crc = !0u32;
-    for &b in kind.iter().chain(data) {
-        crc ^= u32::from(b);
-        for _ in 0..8 {
-            crc = if crc & 1 != 0 {
-                (crc >> 1) ^ 0xEDB8_8320
-            } else {
-                crc >> 1
-            };
-        }
-    }
-    let mut c = (data.len() as u32).to_be_bytes().to_vec();
-    c.extend_from_slice(kind);
-    c.extend_from_slice(data);
-    c.extend_from_slice(&(!crc).to_be_bytes());
-    c
-}
-
 #[test]
 fn corrupt_pngs_bad_crc_bad_idat_and_a_bomb() {
     let dir = tempfile::tempdir().expect("temp");
@@ -371,8 +352,11 @@ fn corrupt_pngs_bad_crc_bad_idat_and_a_bomb() {
     // An IDAT with a valid CRC but garbage instead of zlib data.
     let idat_start = idat - 4;
     let mut bad_zlib = bytes[..idat_start].to_vec();
-    bad_zlib.extend(png_chunk(b"IDAT", &[0xde, 0xad, 0xbe, 0xef, 1, 2, 3, 4]));
-    bad_zlib.extend(png_chunk(b"IEND", &[]));
+    bad_zlib.extend(common::png_chunk(
+        b"IDAT",
+        &[0xde, 0xad, 0xbe, 0xef, 1, 2, 3, 4],
+    ));
+    bad_zlib.extend(common::png_chunk(b"IEND", &[]));
     let bad_zlib_path = dir.path().join("bad-zlib.png");
     std::fs::write(&bad_zlib_path, &bad_zlib).expect("write");
     check_bad(&bad_zlib_path);
@@ -382,13 +366,7 @@ fn corrupt_pngs_bad_crc_bad_idat_and_a_bomb() {
     check_bad(&cut_path);
     // A decompression bomb: 57 bytes that declare 100000 x 100000 RGB (30 GB decoded). Refused
     // from the header alone, before any allocation, with the size in the message.
-    let mut ihdr = 100_000u32.to_be_bytes().to_vec();
-    ihdr.extend_from_slice(&100_000u32.to_be_bytes());
-    ihdr.extend_from_slice(&[8, 2, 0, 0, 0]);
-    let mut bomb = b"\x89PNG\r\n\x1a\n".to_vec();
-    bomb.extend(png_chunk(b"IHDR", &ihdr));
-    bomb.extend(png_chunk(b"IDAT", &[]));
-    bomb.extend(png_chunk(b"IEND", &[]));
+    let bomb = common::png_bomb();
     let bomb_path = dir.path().join("bomb.png");
     std::fs::write(&bomb_path, &bomb).expect("write");
     let message = check_bad(&bomb_path);

@@ -72,3 +72,39 @@ pub fn spawn_and_read_first_line(cmd: &mut Command) -> (Child, BufReader<ChildSt
     stdout.read_line(&mut first).expect("first line");
     (child, stdout, first)
 }
+
+/// A PNG chunk: length, type, data and CRC-32 (for the corrupt and hostile PNGs of the
+/// bad-input tests).
+#[allow(dead_code)]
+pub fn png_chunk(kind: &[u8; 4], data: &[u8]) -> Vec<u8> {
+    let mut crc = !0u32;
+    for &b in kind.iter().chain(data) {
+        crc ^= u32::from(b);
+        for _ in 0..8 {
+            crc = if crc & 1 != 0 {
+                (crc >> 1) ^ 0xEDB8_8320
+            } else {
+                crc >> 1
+            };
+        }
+    }
+    let mut c = (data.len() as u32).to_be_bytes().to_vec();
+    c.extend_from_slice(kind);
+    c.extend_from_slice(data);
+    c.extend_from_slice(&(!crc).to_be_bytes());
+    c
+}
+
+/// A PNG that declares 100000 x 100000 RGB pixels (30 GB decoded) in 57 bytes: a
+/// decompression bomb, refused from its header alone.
+#[allow(dead_code)]
+pub fn png_bomb() -> Vec<u8> {
+    let mut ihdr = 100_000u32.to_be_bytes().to_vec();
+    ihdr.extend_from_slice(&100_000u32.to_be_bytes());
+    ihdr.extend_from_slice(&[8, 2, 0, 0, 0]);
+    let mut bomb = b"\x89PNG\r\n\x1a\n".to_vec();
+    bomb.extend(png_chunk(b"IHDR", &ihdr));
+    bomb.extend(png_chunk(b"IDAT", &[]));
+    bomb.extend(png_chunk(b"IEND", &[]));
+    bomb
+}
