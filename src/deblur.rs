@@ -43,6 +43,10 @@ pub const MIN_FOUND_BLUR: f64 = 4.0;
 /// -1.4.
 const MIN_ZERO_DEPTH: f64 = 0.25;
 
+/// The most zeros of a box's spectrum [`blur_length`] compares (from the lowest frequency):
+/// higher ones lie where noise and JPEG's quantisation fill them.
+const MAX_ZEROS: usize = 4;
+
 /// How long boxes are told apart (pixels): rows whose lengths round to the same multiple of
 /// this share one spectrum.
 const LENGTH_STEP: f64 = 0.125;
@@ -235,7 +239,7 @@ pub fn blur_length(gray: &image::GrayImage, rows: std::ops::Range<u32>, max: f64
         let step = n as f64 / length;
         let (mut zeros, mut between) = (0.0, 0.0);
         let mut count = 0;
-        for j in 1..=40 {
+        for j in 1..=MAX_ZEROS {
             let (zero, mid) = (j as f64 * step, (j as f64 + 0.5) * step);
             if mid >= top {
                 break;
@@ -253,6 +257,57 @@ pub fn blur_length(gray: &image::GrayImage, rows: std::ops::Range<u32>, max: f64
         .min_by(|a, b| a.1.total_cmp(&b.1))
         .filter(|&(_, d)| d <= -MIN_ZERO_DEPTH)
         .map(|(l, _)| l)
+}
+
+/// Rows per band [`blur_lengths`] aims for: enough rows for a steady mean spectrum, few
+/// enough that a blur changing down the frame (a pan changing speed during the readout) is
+/// nearly constant within one.
+const BAND_ROWS: u32 = 96;
+
+/// The blur length of every row of `gray` (at most `max` pixels), for a blur that may change
+/// down the frame: [`blur_length`] over bands of about 96 rows, then a straight
+/// line through the bands' lengths (least squares, bands more than a third from their median
+/// left out), or one length when one band gives it. `None` when fewer than half the bands
+/// agree on a clear blur.
+pub fn blur_lengths(gray: &image::GrayImage, max: f64) -> Option<Vec<f64>> {
+    let h = gray.height();
+    let bands = (h / BAND_ROWS).clamp(1, 8);
+    let size = h / bands;
+    let found: Vec<(f64, f64)> = (0..bands)
+        .filter_map(|b| {
+            let rows = b * size..if b + 1 == bands { h } else { (b + 1) * size };
+            let centre = f64::from(rows.start + rows.end - 1) / 2.0;
+            blur_length(gray, rows, max).map(|l| (centre, l))
+        })
+        .collect();
+    let mid = crate::stats::median(found.iter().map(|f| f.1).collect())?;
+    let kept: Vec<(f64, f64)> = found
+        .into_iter()
+        .filter(|&(_, l)| (l - mid).abs() <= mid / 3.0)
+        .collect();
+    // A camera's motion blurs every row: a length only some bands show is texture (stripes,
+    // JPEG's blocks), not motion.
+    if 2 * kept.len() < bands as usize {
+        return None;
+    }
+    let n = kept.len() as f64;
+    let (my, ml) = (
+        kept.iter().map(|k| k.0).sum::<f64>() / n,
+        kept.iter().map(|k| k.1).sum::<f64>() / n,
+    );
+    let (sxy, sxx) = kept.iter().fold((0.0, 0.0), |(sxy, sxx), &(y, l)| {
+        (sxy + (y - my) * (l - ml), sxx + (y - my) * (y - my))
+    });
+    let slope = if kept.len() >= 2 && sxx > 0.0 {
+        sxy / sxx
+    } else {
+        0.0
+    };
+    Some(
+        (0..h)
+            .map(|y| (ml + slope * (f64::from(y) - my)).clamp(MIN_FOUND_BLUR, max))
+            .collect(),
+    )
 }
 
 /// One thread's plans, spectra and buffers.
@@ -511,7 +566,12 @@ mod tests {
     /// A grey image of rows of broadband texture (a fixed pseudo-random pattern, as a busy scene
     /// has) blurred by `length`.
     fn blurred_image(length: f64) -> image::GrayImage {
-        let (w, h) = (640u32, 120u32);
+        blurred_rows(120, |_| length)
+    }
+
+    /// [`blurred_image`] with `h` rows, row `y` blurred by `length(y)`.
+    fn blurred_rows(h: u32, length: impl Fn(u32) -> f64) -> image::GrayImage {
+        let w = 640u32;
         let mut img = image::GrayImage::new(w, h);
         let mut state = 0x2545_f491_u32;
         for y in 0..h {
@@ -523,8 +583,8 @@ mod tests {
                     60.0 + (state % 128) as f32
                 })
                 .collect();
-            let row = if length > 0.0 {
-                blurred(&row, length)
+            let row = if length(y) > 0.0 {
+                blurred(&row, length(y))
             } else {
                 row
             };
@@ -549,6 +609,25 @@ mod tests {
         assert_eq!(blur_length(&blurred_image(0.0), 0..120, 100.0), None);
         assert_eq!(blur_length(&blurred_image(27.0), 0..4, 100.0), None);
         assert_eq!(blur_length(&blurred_image(27.0), 0..120, 3.0), None);
+    }
+
+    /// A blur that grows down the frame (a pan speeding up during the readout) is followed row
+    /// by row; a steady one is one length; a sharp picture has none.
+    #[test]
+    fn the_rows_blur_lengths_follow_a_changing_blur() {
+        let growing = |y: u32| 16.0 + 8.0 * f64::from(y) / 383.0;
+        let found = blur_lengths(&blurred_rows(384, growing), 100.0).expect("found");
+        assert_eq!(found.len(), 384);
+        for y in [0u32, 100, 200, 383] {
+            let (f, t) = (found[y as usize], growing(y));
+            assert!((f - t).abs() <= 1.0, "row {y}: {f} against {t}");
+        }
+        let steady = blur_lengths(&blurred_rows(384, |_| 20.0), 100.0).expect("found");
+        assert!(
+            steady.iter().all(|&l| (l - 20.0).abs() <= 0.5),
+            "{steady:?}"
+        );
+        assert_eq!(blur_lengths(&blurred_rows(384, |_| 0.0), 100.0), None);
     }
 
     #[test]

@@ -469,6 +469,12 @@ fn correct_one(
         }
     }
     let (img, metadata) = imageio::read_image_with_metadata(&input.path, a.model.max_pixels)?;
+    // A motion blur is removed first, so the faces are found and read in the sharp picture.
+    let (img, blur) = if a.deblur {
+        deblurred(img, a.blur)?
+    } else {
+        (img, None)
+    };
     let report = unshear.estimate_photo(&img, &metadata);
     if let Some(annotate) = &a.annotate {
         create_parent(annotate)?;
@@ -482,17 +488,12 @@ fn correct_one(
             },
         )?;
     }
-    let blur = match (a.deblur, a.blur) {
-        (false, _) => None,
-        (true, Some(px)) => Some(px),
-        (true, None) => Unshear::find_blur(&img),
-    };
     let options = CorrectOptions {
         region: a.region.into(),
         canvas: a.canvas.into(),
         interpolation: a.interp.into(),
         k: a.k,
-        blur,
+        blur: None,
     };
     if !options.changes(&report) {
         return Ok(Corrected::NoFace(report));
@@ -513,6 +514,29 @@ fn correct_one(
         },
     )?;
     Ok(Corrected::Written(report, out, blur))
+}
+
+/// `img` with the motion blur along its rows removed (`correct --deblur`): `given` pixels on
+/// every row, or each row's length found in bands of rows ([`unshear::deblur::blur_lengths`]:
+/// a pan that changes speed during the readout blurs rows differently). Also the length
+/// removed at the middle row, `None` when no blur was found (the image is returned as it is).
+fn deblurred(
+    mut img: image::DynamicImage,
+    given: Option<f64>,
+) -> Result<(image::DynamicImage, Option<f64>)> {
+    let h = img.height() as usize;
+    let lengths = match given {
+        Some(px) => Some(vec![px; h]),
+        None => {
+            let gray = Unshear::gray(&img);
+            unshear::deblur::blur_lengths(&gray, f64::from(gray.width()) / 4.0)
+        }
+    };
+    let Some(lengths) = lengths else {
+        return Ok((img, None));
+    };
+    unshear::deblur::deblur_image(&mut img, &lengths, unshear::deblur::DEFAULT_NOISE_TO_SIGNAL)?;
+    Ok((img, lengths.get(h / 2).copied()))
 }
 
 /// Creates the folder an output goes into, if it does not exist; a file in the way is named as

@@ -91,7 +91,7 @@ pub struct ShearEvalOptions {
     /// face against the shear at its eyes' row; `None`: a plain shear.
     pub camera: Option<CameraLike>,
     /// Look for a motion blur along each frame's rows and remove it before the pipeline reads
-    /// the frame (`correct --deblur`'s estimate and deconvolution, [`Unshear::find_blur`]).
+    /// the frame (its length per row from bands of rows, [`crate::deblur::blur_lengths`]).
     pub deblur: bool,
 }
 
@@ -704,19 +704,30 @@ fn run_one(
         }
     };
     let start = Instant::now();
-    let (sheared, blur) = match deblur.then(|| Unshear::find_blur(&sheared)).flatten() {
-        Some(length) => {
+    let blurs = deblur
+        .then(|| {
+            let gray = Unshear::gray(&sheared);
+            crate::deblur::blur_lengths(&gray, f64::from(gray.width()) / 4.0)
+        })
+        .flatten();
+    let sheared = match &blurs {
+        Some(lengths) => {
             let mut sharp = sheared;
-            let lengths = vec![length; sharp.height() as usize];
             crate::deblur::deblur_image(
                 &mut sharp,
-                &lengths,
+                lengths,
                 crate::deblur::DEFAULT_NOISE_TO_SIGNAL,
             )
             .map_err(failed)?;
-            (sharp, Some(length))
+            sharp
         }
-        None => (sheared, None),
+        None => sheared,
+    };
+    let blur_at = |y: f64| {
+        let lengths = blurs.as_ref()?;
+        lengths
+            .get((y.round().max(0.0) as usize).min(lengths.len() - 1))
+            .copied()
     };
     // Boxes with their estimates, so a face that is detected but yields no estimate still counts
     // as detected.
@@ -783,7 +794,7 @@ fn run_one(
                 local_k,
                 eye_distance: ed,
                 true_blur,
-                blur,
+                blur: blur_at(re.midpoint(le).y),
                 cut: false,
                 detected: hit.is_some(),
                 duplicates,
