@@ -34,7 +34,7 @@ from collections import defaultdict
 from dataclasses import dataclass, field
 from multiprocessing import get_context
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 import numpy.typing as npt
@@ -263,34 +263,30 @@ def run_probe(args: tuple[Labelled, tuple[float, ...], bool, int]) -> ProbeResul
         e = rec.embed(im)
         out.embeddings[name] = None if e is None else e.tolist()
 
+    def variants(k: float, make: Callable[[float], Image], names: tuple[str, str, str]) -> None:
+        """The probe `make(k)` gives, recognised raw, corrected by unshear and corrected with `k`
+        (no frame when no column is covered by every row: nothing to recognise)."""
+        raw, corrected, nominal = (f"{n}@{k}" for n in names)
+        try:
+            probe = make(k)
+        except ValueError:
+            out.refused[corrected] = "no_frame"
+            return
+        put(raw, probe)
+        fixed, out.k[corrected], out.refused[corrected] = correct(probe)
+        put(corrected, fixed)
+        put(nominal, unshear.distort(probe, -k))
+        if names[0].startswith("camera"):
+            fixed, out.k[f"camera-deblurred@{k}"], _ = correct(probe, blur="auto")
+            put(f"camera-deblurred@{k}", fixed)
+
     put("undistorted", img)
     img = frame_rows(rec, img)
     for k in shears:
-        try:
-            sheared = unshear.distort(img, k, canvas="crop")
-        except ValueError:
-            # No column is covered by every row (a tall, narrow photo): nothing to recognise.
-            out.refused[f"corrected@{k}"] = "no_frame"
-            continue
-        put(f"raw@{k}", sheared)
-        fixed, est, why = correct(sheared)
-        out.k[f"corrected@{k}"], out.refused[f"corrected@{k}"] = est, why
-        put(f"corrected@{k}", fixed)
-        put(f"true@{k}", unshear.distort(sheared, -k))
+        variants(k, lambda k: unshear.distort(img, k, canvas="crop"), ("raw", "corrected", "true"))
         if camera:
-            try:
-                cam = camera_like(img, k, seed)
-            except ValueError:
-                out.refused[f"camera-corrected@{k}"] = "no_frame"
-                continue
-            put(f"camera-raw@{k}", cam)
-            fixed, est, why = correct(cam)
-            out.k[f"camera-corrected@{k}"], out.refused[f"camera-corrected@{k}"] = est, why
-            put(f"camera-corrected@{k}", fixed)
-            fixed, est, why = correct(cam, blur="auto")
-            out.k[f"camera-deblurred@{k}"] = est
-            put(f"camera-deblurred@{k}", fixed)
-            put(f"camera-nominal@{k}", unshear.distort(cam, -k))
+            names = ("camera-raw", "camera-corrected", "camera-nominal")
+            variants(k, lambda k: camera_like(img, k, seed), names)
     return out
 
 
