@@ -470,10 +470,11 @@ fn correct_one(
     }
     let (img, metadata) = imageio::read_image_with_metadata(&input.path, a.model.max_pixels)?;
     // A motion blur is removed first, so the faces are found and read in the sharp picture.
-    let (img, blur) = if a.deblur {
-        deblurred(img, a.blur)?
+    let mut img = img;
+    let blur = if a.deblur {
+        Unshear::remove_blur(&mut img, a.blur)?
     } else {
-        (img, None)
+        None
     };
     let report = unshear.estimate_photo(&img, &metadata);
     if let Some(annotate) = &a.annotate {
@@ -514,29 +515,6 @@ fn correct_one(
         },
     )?;
     Ok(Corrected::Written(report, out, blur))
-}
-
-/// `img` with the motion blur along its rows removed (`correct --deblur`): `given` pixels on
-/// every row, or each row's length found in bands of rows ([`unshear::deblur::blur_lengths`]:
-/// a pan that changes speed during the readout blurs rows differently). Also the length
-/// removed at the middle row, `None` when no blur was found (the image is returned as it is).
-fn deblurred(
-    mut img: image::DynamicImage,
-    given: Option<f64>,
-) -> Result<(image::DynamicImage, Option<f64>)> {
-    let h = img.height() as usize;
-    let lengths = match given {
-        Some(px) => Some(vec![px; h]),
-        None => {
-            let gray = Unshear::gray(&img);
-            unshear::deblur::blur_lengths(&gray, f64::from(gray.width()) / 4.0)
-        }
-    };
-    let Some(lengths) = lengths else {
-        return Ok((img, None));
-    };
-    unshear::deblur::deblur_image(&mut img, &lengths, unshear::deblur::DEFAULT_NOISE_TO_SIGNAL)?;
-    Ok((img, lengths.get(h / 2).copied()))
 }
 
 /// Creates the folder an output goes into, if it does not exist; a file in the way is named as

@@ -210,8 +210,8 @@ impl PyUnshear {
     }
 
     /// Removes the shear from ``image``: the estimated one (or ``report``'s), or ``k``; with
-    /// ``blur`` (pixels, or ``"auto"``: found from the image) a motion blur along the rows
-    /// first.
+    /// ``blur`` (pixels, or ``"auto"``: found from the image, row by row) a motion blur along
+    /// the rows first, before the faces are read.
     #[pyo3(signature = (image, k = None, *, region = "image", canvas = "same", interp = "linear", report = None, bgr = false, blur = None))]
     #[allow(clippy::too_many_arguments)]
     fn correct<'py>(
@@ -249,6 +249,11 @@ impl PyUnshear {
         }
         let reason = no_change_reason(&options);
         let result = py.detach(|| -> Result<DynamicImage, Failure> {
+            // A motion blur is removed first, so the faces are read in the sharp picture.
+            let mut image = image;
+            if let Some(length) = blur {
+                unshear::Unshear::remove_blur(&mut image, length).map_err(to_pyerr)?;
+            }
             // The estimate only where it is needed: not for a whole-image correction by `k`.
             let needs_faces = options.region == Region::Face || options.k.is_none();
             let report = match given {
@@ -259,8 +264,6 @@ impl PyUnshear {
             if !options.changes(&report) {
                 return Err(Failure::NoFace(Box::new(report)));
             }
-            let blur = blur.and_then(|b| b.or_else(|| unshear::Unshear::find_blur(&image)));
-            let options = CorrectOptions { blur, ..options };
             unshear::Unshear::correct(&image, &report, &options).map_err(|e| to_pyerr(e).into())
         });
         let result = result.map_err(|f| f.into_pyerr(py, reason))?;

@@ -268,9 +268,9 @@ class Unshear:
         whole image about its middle row; ``"face"`` each face region with its own shear.
         ``canvas``: ``"same"`` size, ``"expand"`` so nothing is cut off, or ``"crop"`` to valid
         pixels. ``interp``: ``"linear"`` or ``"cubic"``. ``blur``: a motion blur along the rows
-        removed first (whole-image correction), its length in pixels (1 to 256) or ``"auto"``
-        (found from the zeros it leaves in the rows' spectrum, as ``unshear correct --deblur``;
-        none found, none removed).
+        removed first, before the faces are read, its length in pixels (1 to 256) or ``"auto"``
+        (found row by row from the zeros it leaves in the rows' spectrum, in bands of rows, as
+        ``unshear correct --deblur``; none found, none removed).
 
         Raises ``NoFaceError`` (a ``ValueError``) when no face gave an accepted estimate and no
         ``k`` was given, ``ValueError`` for a NaN or infinite ``k`` or a bad ``blur``.

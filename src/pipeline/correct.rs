@@ -22,6 +22,27 @@ impl Unshear {
         crate::deblur::blur_length(&gray, 0..gray.height(), f64::from(gray.width()) / 4.0)
     }
 
+    /// Removes a horizontal motion blur from `img` in place, before its faces are read
+    /// (`correct --deblur`): `length` pixels on every row, or (`None`) each row's length found
+    /// in bands of rows ([`crate::deblur::blur_lengths`]: a pan changing speed during the
+    /// readout blurs rows differently). Returns the length removed at the middle row, `None`
+    /// when no blur was found (`img` unchanged).
+    pub fn remove_blur(img: &mut DynamicImage, length: Option<f64>) -> Result<Option<f64>> {
+        let h = img.height() as usize;
+        let lengths = match length {
+            Some(px) => Some(vec![px; h]),
+            None => {
+                let gray = crate::detect::to_gray_opencv(img);
+                crate::deblur::blur_lengths(&gray, f64::from(gray.width()) / 4.0)
+            }
+        };
+        let Some(lengths) = lengths else {
+            return Ok(None);
+        };
+        crate::deblur::deblur_image(img, &lengths, crate::deblur::DEFAULT_NOISE_TO_SIGNAL)?;
+        Ok(lengths.get(h / 2).copied())
+    }
+
     /// Undoes the shear found in `report` (or `options.k`) on `img` (equation 6).
     ///
     /// Whole image: rows shifted by `-k (y - H/2)`. Faces: each face region (its box enlarged by
