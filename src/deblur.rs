@@ -191,72 +191,99 @@ type Plans = (Arc<dyn RealToComplex<f32>>, Arc<dyn ComplexToReal<f32>>);
 /// [`MIN_FOUND_BLUR`] to `max` leaves clear zeros (a sharp picture, little texture) or the rows
 /// are too few.
 pub fn blur_length(gray: &image::GrayImage, rows: std::ops::Range<u32>, max: f64) -> Option<f64> {
-    let w = gray.width() as usize;
-    let rows = rows.start..rows.end.min(gray.height());
-    if w < 32 || rows.len() < 8 || max.is_nan() || max < MIN_FOUND_BLUR {
-        return None;
-    }
-    let n = fast_length(w);
-    let forward = RealFftPlanner::<f32>::new().plan_fft_forward(n);
-    let window: Vec<f32> = (0..w)
-        .map(|i| {
-            let t = std::f32::consts::TAU * i as f32 / (w - 1) as f32;
-            0.5 - 0.5 * t.cos()
-        })
-        .collect();
-    let mut input = vec![0.0f32; n];
-    let mut spectrum = vec![Complex32::default(); n / 2 + 1];
-    let mut scratch = vec![Complex32::default(); forward.get_scratch_len()];
-    let mut power = vec![0.0f64; n / 2 + 1];
-    for y in rows.clone() {
-        let row = &gray.as_raw()[y as usize * w..(y as usize + 1) * w];
-        let mean = row.iter().map(|&v| f32::from(v)).sum::<f32>() / w as f32;
-        for ((o, &v), &h) in input.iter_mut().zip(row).zip(&window) {
-            *o = (f32::from(v) - mean) * h;
-        }
-        input[w..].fill(0.0);
-        if forward
-            .process_with_scratch(&mut input, &mut spectrum, &mut scratch)
-            .is_err()
-        {
+    RowSpectra::new(gray.width() as usize)?.blur_length(gray, rows, max)
+}
+
+/// A row width's FFT plan and Hann window, made once for every band [`blur_lengths`] reads.
+struct RowSpectra {
+    forward: Arc<dyn RealToComplex<f32>>,
+    window: Vec<f32>,
+}
+
+impl RowSpectra {
+    /// `None` for rows too short to show a blur's zeros.
+    fn new(w: usize) -> Option<Self> {
+        if w < 32 {
             return None;
         }
-        for (p, c) in power.iter_mut().zip(&spectrum) {
-            *p += f64::from(c.norm_sqr());
-        }
+        let window = (0..w)
+            .map(|i| {
+                let t = std::f32::consts::TAU * i as f32 / (w - 1) as f32;
+                0.5 - 0.5 * t.cos()
+            })
+            .collect();
+        let forward = RealFftPlanner::<f32>::new().plan_fft_forward(fast_length(w));
+        Some(Self { forward, window })
     }
-    let log: Vec<f64> = power
-        .iter()
-        .map(|p| (p / rows.len() as f64 + 1e-9).ln())
-        .collect();
-    let at = |f: f64| {
-        let i = f.floor() as usize;
-        let t = f - i as f64;
-        log[i] + (log[(i + 1).min(log.len() - 1)] - log[i]) * t
-    };
-    let top = (log.len() - 2) as f64;
-    let depth = |length: f64| {
-        let step = n as f64 / length;
-        let (mut zeros, mut between) = (0.0, 0.0);
-        let mut count = 0;
-        for j in 1..=MAX_ZEROS {
-            let (zero, mid) = (j as f64 * step, (j as f64 + 0.5) * step);
-            if mid >= top {
-                break;
-            }
-            zeros += at(zero);
-            between += at(mid);
-            count += 1;
+
+    /// [`blur_length`] with this plan (`gray` must be as wide as the window).
+    fn blur_length(
+        &self,
+        gray: &image::GrayImage,
+        rows: std::ops::Range<u32>,
+        max: f64,
+    ) -> Option<f64> {
+        let w = gray.width() as usize;
+        let rows = rows.start..rows.end.min(gray.height());
+        if w != self.window.len() || rows.len() < 8 || max.is_nan() || max < MIN_FOUND_BLUR {
+            return None;
         }
-        (count >= 2).then(|| (zeros - between) / f64::from(count))
-    };
-    let steps = ((max.min(MAX_BLUR) - MIN_FOUND_BLUR) / 0.25).floor() as usize;
-    (0..=steps)
-        .map(|i| MIN_FOUND_BLUR + 0.25 * i as f64)
-        .filter_map(|l| depth(l).map(|d| (l, d)))
-        .min_by(|a, b| a.1.total_cmp(&b.1))
-        .filter(|&(_, d)| d <= -MIN_ZERO_DEPTH)
-        .map(|(l, _)| l)
+        let (forward, window) = (&self.forward, &self.window);
+        let n = forward.len();
+        let mut input = vec![0.0f32; n];
+        let mut spectrum = vec![Complex32::default(); n / 2 + 1];
+        let mut scratch = vec![Complex32::default(); forward.get_scratch_len()];
+        let mut power = vec![0.0f64; n / 2 + 1];
+        for y in rows.clone() {
+            let row = &gray.as_raw()[y as usize * w..(y as usize + 1) * w];
+            let mean = row.iter().map(|&v| f32::from(v)).sum::<f32>() / w as f32;
+            for ((o, &v), &h) in input.iter_mut().zip(row).zip(window) {
+                *o = (f32::from(v) - mean) * h;
+            }
+            input[w..].fill(0.0);
+            if forward
+                .process_with_scratch(&mut input, &mut spectrum, &mut scratch)
+                .is_err()
+            {
+                return None;
+            }
+            for (p, c) in power.iter_mut().zip(&spectrum) {
+                *p += f64::from(c.norm_sqr());
+            }
+        }
+        let log: Vec<f64> = power
+            .iter()
+            .map(|p| (p / rows.len() as f64 + 1e-9).ln())
+            .collect();
+        let at = |f: f64| {
+            let i = f.floor() as usize;
+            let t = f - i as f64;
+            log[i] + (log[(i + 1).min(log.len() - 1)] - log[i]) * t
+        };
+        let top = (log.len() - 2) as f64;
+        let depth = |length: f64| {
+            let step = n as f64 / length;
+            let (mut zeros, mut between) = (0.0, 0.0);
+            let mut count = 0;
+            for j in 1..=MAX_ZEROS {
+                let (zero, mid) = (j as f64 * step, (j as f64 + 0.5) * step);
+                if mid >= top {
+                    break;
+                }
+                zeros += at(zero);
+                between += at(mid);
+                count += 1;
+            }
+            (count >= 2).then(|| (zeros - between) / f64::from(count))
+        };
+        let steps = ((max.min(MAX_BLUR) - MIN_FOUND_BLUR) / 0.25).floor() as usize;
+        (0..=steps)
+            .map(|i| MIN_FOUND_BLUR + 0.25 * i as f64)
+            .filter_map(|l| depth(l).map(|d| (l, d)))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .filter(|&(_, d)| d <= -MIN_ZERO_DEPTH)
+            .map(|(l, _)| l)
+    }
 }
 
 /// Rows per band [`blur_lengths`] aims for: enough rows for a steady mean spectrum, few
@@ -273,11 +300,12 @@ pub fn blur_lengths(gray: &image::GrayImage, max: f64) -> Option<Vec<f64>> {
     let h = gray.height();
     let bands = (h / BAND_ROWS).clamp(1, 8);
     let size = h / bands;
+    let spectra = RowSpectra::new(gray.width() as usize)?;
     let found: Vec<(f64, f64)> = (0..bands)
         .filter_map(|b| {
             let rows = b * size..if b + 1 == bands { h } else { (b + 1) * size };
             let centre = f64::from(rows.start + rows.end - 1) / 2.0;
-            blur_length(gray, rows, max).map(|l| (centre, l))
+            spectra.blur_length(gray, rows, max).map(|l| (centre, l))
         })
         .collect();
     let mid = crate::stats::median(found.iter().map(|f| f.1).collect())?;

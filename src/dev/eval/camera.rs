@@ -168,6 +168,7 @@ impl CameraLike {
         let mut out = RgbImage::new(frame.width, h);
         let mut row = vec![0f32; ws * 3];
         let mut shifted = vec![0f32; fw * 3];
+        let mut blurred = vec![0f32; fw * 3];
         for y in 0..h {
             let yf = f64::from(y);
             // The photo's row, between two rows when the drift spreads them.
@@ -192,7 +193,7 @@ impl CameraLike {
                     shifted[x * 3 + c] = row[x0 * 3 + c] * (1.0 - t) + row[x1 * 3 + c] * t;
                 }
             }
-            let blurred = box_blur(&shifted, frame.blur(yf));
+            box_blur(&shifted, frame.blur(yf), &mut blurred);
             for x in 0..fw {
                 let mut px = [0u8; 3];
                 for (c, v) in px.iter_mut().enumerate() {
@@ -210,19 +211,19 @@ impl CameraLike {
     }
 }
 
-/// An RGB row (interleaved) blurred by a box `length` px long centred on each pixel, the
-/// box's two end taps weighted by the fraction they cover; edges replicated. Running sums
-/// keep it one pass whatever the length.
-fn box_blur(row: &[f32], length: f64) -> Vec<f32> {
+/// An RGB row (interleaved) blurred into `out` (as long) by a box `length` px long centred on
+/// each pixel, the box's two end taps weighted by the fraction they cover; edges replicated.
+/// Running sums keep it one pass whatever the length.
+fn box_blur(row: &[f32], length: f64, out: &mut [f32]) {
     let n = row.len() / 3;
     if length <= 1.0 || n == 0 {
-        return row.to_vec();
+        out.copy_from_slice(row);
+        return;
     }
     let half = length / 2.0;
     let whole = (half - 0.5).floor().max(0.0) as usize;
     let edge = ((half - 0.5) - whole as f64) as f32;
     let at = |i: isize, c: usize| row[(i.clamp(0, n as isize - 1) as usize) * 3 + c];
-    let mut out = vec![0f32; row.len()];
     for c in 0..3 {
         let mut sum: f32 = (-(whole as isize)..=whole as isize).map(|i| at(i, c)).sum();
         for x in 0..n as isize {
@@ -233,7 +234,6 @@ fn box_blur(row: &[f32], length: f64) -> Vec<f32> {
             out[x as usize * 3 + c] = (sum + edge * ends) / (2.0 * whole as f32 + 1.0 + 2.0 * edge);
         }
     }
-    out
 }
 
 /// A standard normal draw (Box-Muller).
@@ -342,7 +342,8 @@ mod tests {
         let row: Vec<f32> = (0..40)
             .flat_map(|x| [if x < 20 { 0.0 } else { 1.0 }; 3])
             .collect();
-        let out = box_blur(&row, 10.0);
+        let mut out = vec![0f32; row.len()];
+        box_blur(&row, 10.0, &mut out);
         let ramp = (0..40)
             .filter(|&x| out[x * 3] > 0.01 && out[x * 3] < 0.99)
             .count();
