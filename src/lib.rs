@@ -89,7 +89,7 @@ pub use error::{Error, Result};
 pub use geometry::{Point, Rect, Shear};
 pub use pipeline::{
     CorrectOptions, FaceReport, FaceStart, FileOptions, ImageReport, Models, Readout, Refusal,
-    Region, ShearSource, Unshear,
+    Region, RowShear, ShearSource, Unshear,
 };
 pub use scene::{SceneSegment, SceneShear};
 

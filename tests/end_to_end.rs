@@ -613,3 +613,58 @@ fn the_network_detector_finds_small_and_rolled_faces() {
         );
     }
 }
+
+/// A pan changing speed during the readout shears two faces at different heights differently:
+/// the estimate bends the rows' offsets through both faces' shears, and the correction
+/// straightens each face (a single shear would leave them 0.1 off or more).
+#[test]
+fn faces_at_different_heights_sheared_differently_bend_the_correction() {
+    use image::GenericImage;
+    let paths = fixtures();
+    let (a, b) = (load(&paths[0]).to_rgb8(), load(&paths[2]).to_rgb8());
+    let (w, h) = (a.width(), a.height());
+    // One face in the upper half on the left, the other in the lower half on the right.
+    let mut frame = image::RgbImage::from_pixel(2 * w + 120, 2 * h, image::Rgb([96, 96, 96]));
+    frame.copy_from(&a, 0, 0).expect("fits");
+    frame.copy_from(&b, w + 120, h).expect("fits");
+    let frame = DynamicImage::ImageRgb8(frame);
+    let height = frame.height();
+    // The shear grows from 0.10 at the top face's middle row to 0.40 at the bottom face's.
+    let (top, bottom) = (f64::from(h) / 2.0, f64::from(h) * 1.5);
+    let truth = unshear::RowShear::new((top, 0.10), (bottom, 0.40)).expect("a curve");
+    let pivot = f64::from(height) / 2.0;
+    let moved: Vec<f64> = truth.offsets(height, pivot).iter().map(|d| -d).collect();
+    let (distorted, _) = unshear::warp::try_shift_rows_on(
+        &frame,
+        &moved,
+        pivot,
+        Interpolation::Cubic,
+        Canvas::Expand,
+    )
+    .expect("a canvas");
+    let unshear = built(Config::default());
+    let report = unshear.estimate(&distorted);
+    let accepted: Vec<_> = report.faces.iter().filter(|f| f.k.is_some()).collect();
+    assert_eq!(accepted.len(), 2, "{report:?}");
+    let rows = report
+        .row_shear
+        .unwrap_or_else(|| panic!("no bend: {report:?}"));
+    for f in &accepted {
+        let y = f.right_eye.midpoint(f.left_eye).y;
+        assert!(
+            (rows.k_at(y) - truth.k_at(y)).abs() < 0.05,
+            "row {y}: {} vs {}",
+            rows.k_at(y),
+            truth.k_at(y)
+        );
+    }
+    let k = report.k.expect("a shear");
+    assert!((k - rows.k_at(pivot)).abs() < 1e-12);
+    // Corrected with the bend, both faces read upright again.
+    let corrected = Unshear::correct(&distorted, &report, &Default::default()).expect("corrected");
+    let again = unshear.estimate(&corrected);
+    let left: Vec<f64> = again.faces.iter().filter_map(|f| f.k).collect();
+    assert_eq!(left.len(), 2, "{again:?}");
+    assert!(left.iter().all(|k| k.abs() < 0.05), "{left:?}");
+    assert!(again.row_shear.is_none());
+}

@@ -5,7 +5,8 @@
 //! "confidence": number}]}` plus
 //! `"error": "..."` when the input failed, `"faces_disagree"` and `"warnings"`, `"k_source"`
 //! (which rulers made `k`) when `k` is set, `"scene_k"` and `"scene_uncertainty"` when the
-//! scene's verticals give a shear, `"scene_disagrees": true` when they disagree with the faces, and
+//! scene's verticals give a shear, `"scene_disagrees": true` when they disagree with the faces, `"k_rows"` when the shear
+//! changes down the rows (faces at different heights disagreeing), and
 //! `"readout": "columns"` for a picture read out column by column; each face also
 //! has `"refused"` (why its `k` is null) and `"outvoted"`. A face's `k` is null when its
 //! estimate was refused; `k_measured` is what was measured all the same; `roll` is in degrees.
@@ -50,6 +51,11 @@ pub struct JsonLine {
     /// Whether the faces and the scene disagree (the faces made `k`); left out when false.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     scene_disagrees: bool,
+    /// `[[row, k], [row, k]]`: the shear at the highest and the lowest face's row when faces at
+    /// different heights disagree beyond their uncertainty (linear between, held beyond; `k`
+    /// is then its value at the middle row); left out otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    k_rows: Option<[[f64; 2]; 2]>,
     faces: Vec<JsonFace>,
     faces_disagree: bool,
     warnings: Vec<String>,
@@ -90,6 +96,9 @@ impl JsonLine {
             scene_k: report.scene.as_ref().map(|s| r4(s.k)),
             scene_uncertainty: report.scene.as_ref().map(|s| r4(s.uncertainty)),
             scene_disagrees: report.scene_disagrees,
+            k_rows: report
+                .row_shear
+                .map(|r| [[r4(r.top.0), r4(r.top.1)], [r4(r.bottom.0), r4(r.bottom.1)]]),
             faces: report.faces.iter().map(face).collect(),
             faces_disagree: report.faces_disagree,
             warnings: report.warnings.clone(),
@@ -116,6 +125,7 @@ impl JsonLine {
             scene_k: None,
             scene_uncertainty: None,
             scene_disagrees: false,
+            k_rows: None,
             faces: Vec::new(),
             faces_disagree: false,
             warnings: Vec::new(),

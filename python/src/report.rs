@@ -268,6 +268,15 @@ impl Report {
         self.inner.scene_disagrees
     }
 
+    /// ``[(row, k), (row, k)]``: the shear at the highest and the lowest face's row when faces at
+    /// different heights disagree beyond their uncertainty (a pan changing speed during the
+    /// readout; linear between, held beyond, and ``k`` is its value at the middle row), or
+    /// ``None`` (one shear for every row).
+    #[getter]
+    fn k_rows(&self) -> Option<Vec<(f64, f64)>> {
+        self.inner.row_shear.map(|r| vec![r.top, r.bottom])
+    }
+
     /// What the caller should know about this image (views skipped, data missing, ...).
     #[getter]
     fn warnings(&self) -> Vec<String> {
@@ -298,6 +307,9 @@ impl Report {
         }
         if self.inner.scene_disagrees {
             d.set_item("scene_disagrees", true)?;
+        }
+        if let Some(r) = self.inner.row_shear {
+            d.set_item("k_rows", vec![[r.top.0, r.top.1], [r.bottom.0, r.bottom.1]])?;
         }
         Ok(d)
     }

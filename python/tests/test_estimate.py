@@ -225,7 +225,7 @@ def assert_same(cli: dict[str, object], report: unshear.Report) -> None:
     close(cli["k"], ours["k"], "k")
     for key in ("k_source", "scene_disagrees"):
         assert cli.get(key) == ours.get(key), key
-    for key in ("scene_k", "scene_uncertainty"):
+    for key in ("scene_k", "scene_uncertainty", "k_rows"):
         close(cli.get(key), ours.get(key), key)
     assert report.scene_k == ours.get("scene_k")
     faces = cli["faces"]
@@ -269,6 +269,51 @@ def test_agrees_with_the_cli_json(
     assert sum(r.k is not None for r in reports) >= 5
     for line, report in zip(lines, reports):
         assert_same(line, report)
+
+
+def bent_pan(faces: list[np.ndarray]) -> tuple[np.ndarray, float, float]:
+    """Two fixture faces, one in the upper half and one in the lower, under a pan speeding up
+    during the readout: the shear grows from 0.10 at the upper face's middle row to 0.40 at the
+    lower's (linear between, held beyond). Returns the frame and the two faces' rows."""
+    a, b = faces[0], faces[2]
+    h, w = a.shape[:2]
+    frame = np.full((2 * h, 2 * w + 120, 3), 96, np.uint8)
+    frame[:h, :w] = a
+    frame[h:, w + 120 :] = b
+    top, bottom = h / 2, 1.5 * h
+    rows = np.arange(2 * h, dtype=np.float64)
+    k = 0.10 + 0.30 * np.clip((rows - top) / (bottom - top), 0, 1)
+    offsets = np.concatenate([[0.0], np.cumsum((k[1:] + k[:-1]) / 2)])
+    offsets -= np.interp(h, rows, offsets)  # about the middle row
+    pad = int(np.abs(offsets).max()) + 2
+    wide = np.pad(frame, ((0, 0), (pad, pad), (0, 0)), constant_values=96).astype(np.float64)
+    xs = np.arange(wide.shape[1], dtype=np.float64)
+    out = np.empty_like(wide)
+    for y in range(2 * h):  # the content of row y moves right by offsets[y]
+        for c in range(3):
+            out[y, :, c] = np.interp(xs - offsets[y], xs, wide[y, :, c])
+    return out.round().astype(np.uint8), top, bottom
+
+
+def test_faces_at_different_heights_bend_the_rows(tmp_path: Path, faces: list[np.ndarray]) -> None:
+    """A pan changing speed during the readout: ``k_rows`` gives the shear at the two faces'
+    rows, the CLI agrees, and ``correct`` straightens both faces."""
+    img, top, bottom = bent_pan(faces)
+    u = unshear.Unshear()
+    report = u.estimate(img)
+    assert report.k_rows is not None, report.to_dict()
+    (y0, k0), (y1, k1) = report.k_rows
+    assert abs(y0 - top) < 30 and abs(y1 - bottom) < 30, report.k_rows
+    assert abs(k0 - 0.10) < 0.05 and abs(k1 - 0.40) < 0.05, report.k_rows
+    assert report.to_dict()["k_rows"] == [[y0, k0], [y1, k1]]
+    path = tmp_path / "bent.png"
+    unshear.write(path, img)
+    (line,) = run_cli(["estimate", "--json", str(path)])
+    assert_same(line, report)
+    again = u.estimate(u.correct(img, report))
+    ks = [f.k for f in again.faces if f.k is not None]
+    assert len(ks) == 2 and all(abs(k) < 0.05 for k in ks), ks
+    assert again.k_rows is None
 
 
 def test_the_scenes_verticals_are_reported_without_faces() -> None:

@@ -150,11 +150,17 @@ class Report:
         """Whether the faces and the scene disagree beyond their uncertainties (the faces made
         ``k``: the subject moved differently from the camera)."""
     @property
+    def k_rows(self) -> list[tuple[float, float]] | None:
+        """``[(row, k), (row, k)]``: the shear at the highest and the lowest face's row when
+        faces at different heights disagree beyond their uncertainty (linear between, held
+        beyond; ``k`` is then its value at the middle row), or ``None``."""
+    @property
     def warnings(self) -> list[str]:
         """What the caller should know about this image (views skipped, data missing, ...)."""
     def to_dict(self) -> dict[str, Any]:
         """``{"k": ..., "faces": [...]}`` with the CLI's ``--json`` keys (``k_source``,
-        ``scene_k``, ``scene_uncertainty``, ``scene_disagrees`` when set), not rounded."""
+        ``scene_k``, ``scene_uncertainty``, ``scene_disagrees``, ``k_rows`` when set), not
+        rounded."""
     # Compared by value, so unhashable; pickled and copied whole (every property, not only
     # those of to_dict()).
     __hash__: ClassVar[None]  # type: ignore[assignment]

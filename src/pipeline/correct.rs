@@ -45,7 +45,8 @@ impl Unshear {
 
     /// Undoes the shear found in `report` (or `options.k`) on `img` (equation 6).
     ///
-    /// Whole image: rows shifted by `-k (y - H/2)`. Faces: each face region (its box enlarged by
+    /// Whole image: rows shifted by `-k (y - H/2)`, or each by its own offset when the report's
+    /// shear changes down the rows ([`ImageReport::row_shear`], unless `options.k` is given). Faces: each face region (its box enlarged by
     /// 30% of its size each way) de-sheared about its own centre with its own `k`, feathered into the
     /// untouched surroundings. A report read out by columns ([`Readout::Columns`]) is undone
     /// along the columns: the same warp on the transposed image, columns shifted by
@@ -80,22 +81,33 @@ impl Unshear {
                 let k = options.k.or(report.k).ok_or_else(|| {
                     Error::InvalidArgument("no face found and no shear given".into())
                 })?;
-                let shear = Shear::about_middle(k, img.height());
-                if let Some(length) = options.blur {
-                    // The blur is removed from the rows as read, before they are moved.
-                    let mut sharp = img.clone();
-                    let lengths = vec![length; img.height() as usize];
-                    let nsr = crate::deblur::DEFAULT_NOISE_TO_SIGNAL;
-                    crate::deblur::deblur_image(&mut sharp, &lengths, nsr)?;
-                    let (out, _) = warp::try_remove_shear(
-                        &sharp,
-                        shear,
-                        options.interpolation,
-                        options.canvas,
-                    )?;
-                    return Ok(out);
+                let sharp;
+                let src = match options.blur {
+                    Some(length) => {
+                        // The blur is removed from the rows as read, before they are moved.
+                        let mut copy = img.clone();
+                        let lengths = vec![length; img.height() as usize];
+                        let nsr = crate::deblur::DEFAULT_NOISE_TO_SIGNAL;
+                        crate::deblur::deblur_image(&mut copy, &lengths, nsr)?;
+                        sharp = copy;
+                        &sharp
+                    }
+                    None => img,
+                };
+                // Faces at different heights that disagree bend the rows' offsets, unless a
+                // shear is given.
+                let (interp, canvas) = (options.interpolation, options.canvas);
+                match report.row_shear.filter(|_| options.k.is_none()) {
+                    Some(rows) => {
+                        let pivot = f64::from(img.height()) / 2.0;
+                        let shifts = rows.offsets(img.height(), pivot);
+                        Ok(warp::try_shift_rows_on(src, &shifts, pivot, interp, canvas)?.0)
+                    }
+                    None => {
+                        let shear = Shear::about_middle(k, img.height());
+                        Ok(warp::try_remove_shear(src, shear, interp, canvas)?.0)
+                    }
                 }
-                Ok(warp::try_remove_shear(img, shear, options.interpolation, options.canvas)?.0)
             }
             Region::Face => {
                 if report.faces.is_empty() {

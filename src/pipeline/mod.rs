@@ -26,6 +26,7 @@ mod network_search;
 mod photo;
 mod proposals;
 mod report;
+mod row_shear;
 #[cfg(test)]
 mod tests;
 mod viola_jones_search;
@@ -41,6 +42,7 @@ pub use photo::FileOptions;
 pub(crate) use proposals::{box_from_eyes, follows};
 pub(crate) use report::FoundBox;
 pub use report::{CorrectOptions, FaceReport, ImageReport, Readout, Refusal, Region, ShearSource};
+pub use row_shear::RowShear;
 use viola_jones_search::MAX_VIEW_PIXELS_RATIO;
 pub use viola_jones_search::{
     Detection, DEFAULT_ROLL_HYPOTHESES, DEFAULT_SHEAR_HYPOTHESES, THOROUGH_ROLL_HYPOTHESES,
@@ -58,6 +60,18 @@ use viola_jones_search::{
     THOROUGH_ROLL_HYPOTHESES as THOROUGH_ROLLS, THOROUGH_SHEAR_HYPOTHESES as THOROUGH_SHEARS,
     THOROUGH_STAGE_SLACK, THOROUGH_VIEW_MIN_FACE,
 };
+
+/// The faces' one shear (their consensus) and, when faces at different heights disagree, how it
+/// changes down the rows of an image `height` rows tall: what [`Unshear::estimate_gray`] makes
+/// of its faces before the scene is read (for the evaluation, which scores both).
+#[cfg(feature = "dev")]
+pub(crate) fn faces_shear(
+    mut faces: Vec<FaceReport>,
+    height: u32,
+) -> (Option<f64>, Option<RowShear>) {
+    let consensus = mark_consensus(&mut faces);
+    (consensus.k, row_shear::fit_row_shear(&faces, height))
+}
 
 /// The models a corrector runs: the built-in ones ([`Models::builtin`]) or files of the user's
 /// (a cascade XML, a filter file from `unshear train`, a network from
@@ -238,6 +252,8 @@ impl Unshear {
         // The scene was read along the rows: a vertical shear is not what it measured.
         report.scene = None;
         report.scene_disagrees = false;
+        // A change of shear down the rows is not one across the columns.
+        report.row_shear = None;
         report.k_source = report.k.map(|_| ShearSource::Faces);
         if !report.faces.is_empty() {
             report.warnings.push(
@@ -290,7 +306,17 @@ impl Unshear {
             .into_iter()
             .filter_map(|found| found.report)
             .collect();
-        let consensus = mark_consensus(&mut faces);
+        let mut consensus = mark_consensus(&mut faces);
+        // Faces at different heights that disagree beyond their errors: the shear changes down
+        // the rows, and the faces it explains are no longer outvoted.
+        let bend = row_shear::fit_row_shear(&faces, gray.height());
+        if let Some(rows) = &bend {
+            for f in faces.iter_mut().filter(|f| row_shear::explained(rows, f)) {
+                f.outvoted = false;
+            }
+            consensus.k = Some(rows.k_at(f64::from(gray.height()) / 2.0));
+            consensus.no_majority = false;
+        }
         // `auto` reads the scene only when no face gives `k` (then it is reported, not used):
         // with faces it would cost its time and, as measured, not make `k` better.
         let read_scene = match self.config.ruler {
@@ -307,6 +333,8 @@ impl Unshear {
             .count();
         let (k, k_source, scene_disagrees) =
             fuse(consensus.k, agreeing, scene.as_ref(), self.config.ruler);
+        // Only a shear the faces alone made bends: the scene's is one for the whole frame.
+        let row_shear = bend.filter(|_| k_source == Some(ShearSource::Faces));
         ImageReport {
             k,
             faces,
@@ -318,6 +346,7 @@ impl Unshear {
             scene,
             k_source,
             scene_disagrees,
+            row_shear,
         }
     }
 

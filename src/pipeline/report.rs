@@ -3,6 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::row_shear::RowShear;
 use crate::annotate::FaceMarks;
 use crate::config::Locator;
 use crate::geometry::{Point, Rect};
@@ -204,6 +205,11 @@ pub struct ImageReport {
     /// uncertainties: the faces decided (the subject moved differently from the camera).
     #[serde(default)]
     pub scene_disagrees: bool,
+    /// How the shear changes down the rows, when faces at different heights disagree beyond
+    /// their uncertainty (a pan changing speed during the readout); `k` is then its value at
+    /// the middle row, and a whole-image correction shifts each row by its own offset.
+    #[serde(default)]
+    pub row_shear: Option<RowShear>,
 }
 
 impl ImageReport {
@@ -221,6 +227,7 @@ impl ImageReport {
             scene: None,
             k_source: None,
             scene_disagrees: false,
+            row_shear: None,
         }
     }
 

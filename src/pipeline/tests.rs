@@ -948,6 +948,7 @@ fn a_correction_changes_the_image_only_with_a_shear_to_apply() {
         scene: None,
         k_source: None,
         scene_disagrees: false,
+        row_shear: None,
     };
     let options = |region, k| CorrectOptions {
         region,
@@ -989,6 +990,7 @@ fn a_picture_read_by_columns_reports_its_vertical_shear() {
         scene: None,
         k_source: None,
         scene_disagrees: false,
+        row_shear: None,
     };
     let columns = u.read_by_columns(report);
     assert_eq!(columns.readout, Readout::Columns);
@@ -1022,6 +1024,7 @@ fn a_picture_read_by_columns_reports_its_vertical_shear() {
         scene: None,
         k_source: None,
         scene_disagrees: false,
+        row_shear: None,
     });
     assert_eq!(far.k, None);
     assert_eq!(far.faces[0].refused, Some(Refusal::ImplausibleShear));
@@ -1055,6 +1058,7 @@ fn a_correction_by_columns_straightens_a_vertically_sheared_line() {
         scene: None,
         k_source: None,
         scene_disagrees: false,
+        row_shear: None,
     };
     let fixed = Unshear::correct(&sheared, &report, &CorrectOptions::default())
         .expect("corrected")

@@ -157,24 +157,71 @@ pub(crate) fn sheared_canvas(
             shear.k, shear.pivot_y
         )));
     }
+    let shift = |y: u32| snap(shear.row_shift(f64::from(y)));
+    // A line's extremes over rows y0..=y1 are at its ends.
+    let span = |y0: u32, y1: u32| {
+        let (a, b) = (shift(y0), shift(y1));
+        (a.min(b), a.max(b))
+    };
+    canvas_of_rows(width, height, shear.pivot_y, canvas, &span)
+        .map_err(|what| Error::InvalidArgument(format!("{what} under shear k = {}", shear.k)))
+}
+
+/// [`sheared_canvas`] for rows shifted by their own amounts, `out(x, y) = in(x + shifts[y], y)`
+/// (input row `y` lands at frame columns from `-shifts[y]`); `Crop` centres its rows on `pivot`.
+///
+/// # Errors
+/// As [`sheared_canvas`].
+pub(crate) fn shifted_canvas(
+    width: u32,
+    height: u32,
+    shifts: &[f64],
+    pivot: f64,
+    canvas: Canvas,
+) -> Result<(u32, u32, Placement)> {
+    check_rows(shifts, height, "row shift")?;
+    let span = |y0: u32, y1: u32| {
+        shifts[y0 as usize..=y1 as usize].iter().fold(
+            (f64::INFINITY, f64::NEG_INFINITY),
+            |(a, b), &v| {
+                let s = snap(-v);
+                (a.min(s), b.max(s))
+            },
+        )
+    };
+    let pivot = if pivot.is_finite() {
+        pivot
+    } else {
+        f64::from(height) / 2.0
+    };
+    canvas_of_rows(width, height, pivot, canvas, &span)
+        .map_err(|what| Error::InvalidArgument(format!("{what} with its rows shifted")))
+}
+
+/// The canvas of rows whose content lands at frame columns `s(y) ..= s(y) + width - 1`, where
+/// `span(y0, y1)` gives the least and the greatest `s` over rows `y0..=y1` (see
+/// [`sheared_canvas`]); the error is what went wrong, for the caller to complete.
+fn canvas_of_rows(
+    width: u32,
+    height: u32,
+    pivot: f64,
+    canvas: Canvas,
+    span: &dyn Fn(u32, u32) -> (f64, f64),
+) -> std::result::Result<(u32, u32, Placement), String> {
     let same = (width, height, Placement::default());
     if width == 0 || height == 0 {
         return Ok(same);
     }
     let w = f64::from(width);
-    let shift = |y: f64| snap(shear.row_shift(y));
     match canvas {
         Canvas::Same => Ok(same),
         Canvas::Expand => {
-            let (a, b) = (shift(0.0), shift(f64::from(height - 1)));
-            let left = a.min(b).floor();
-            let right = (a.max(b) + w - 1.0).ceil();
+            let (least, most) = span(0, height - 1);
+            let left = least.floor();
+            let right = (most + w - 1.0).ceil();
             let out_w = right - left + 1.0;
             if out_w * f64::from(height) > MAX_OUTPUT_PIXELS as f64 {
-                return Err(Error::InvalidArgument(format!(
-                    "shear k = {} would need a {out_w}x{height} canvas",
-                    shear.k
-                )));
+                return Err(format!("a {out_w}x{height} canvas would be needed"));
             }
             Ok((
                 out_w as u32,
@@ -189,13 +236,17 @@ pub(crate) fn sheared_canvas(
             // (area, out_w, h, x0, y0)
             let mut best: Option<(u64, u32, u32, f64, u32)> = None;
             for h in (1..=height).rev() {
+                if best.is_some_and(|b| u64::from(width) * u64::from(h) <= b.0) {
+                    // No narrower-or-equal rectangle of fewer rows can beat it.
+                    break;
+                }
                 // Centre the rows on the pivot; the width only depends on h (up to rounding).
-                let ideal = shear.pivot_y - f64::from(h - 1) / 2.0;
+                let ideal = pivot - f64::from(h - 1) / 2.0;
                 let y0 = ideal.round().clamp(0.0, f64::from(height - h)) as u32;
                 let y1 = y0 + h - 1;
-                let (a, b) = (shift(f64::from(y0)), shift(f64::from(y1)));
-                let x0 = a.max(b).ceil();
-                let x1 = (a.min(b) + w - 1.0).floor();
+                let (least, most) = span(y0, y1);
+                let x0 = most.ceil();
+                let x1 = (least + w - 1.0).floor();
                 if x1 < x0 {
                     continue;
                 }
@@ -205,12 +256,8 @@ pub(crate) fn sheared_canvas(
                     best = Some((area, out_w, h, x0, y0));
                 }
             }
-            let (_, out_w, h, x0, y0) = best.ok_or_else(|| {
-                Error::InvalidArgument(format!(
-                    "no pixel of a {width}x{height} image stays inside it under shear k = {}",
-                    shear.k
-                ))
-            })?;
+            let (_, out_w, h, x0, y0) = best
+                .ok_or_else(|| format!("no pixel of a {width}x{height} image stays inside it"))?;
             Ok((
                 out_w,
                 h,
@@ -314,6 +361,40 @@ pub(crate) fn try_shift_rows(
 ) -> Result<DynamicImage> {
     let plan = offsets_plan(img.width(), img.height(), shifts)?;
     Ok(per_variant!(img, |buf| warp_buffer(buf, &plan, interp)))
+}
+
+/// Shift every row by its own amount on `canvas`: `out(x, y) = in(x + shifts[y], y)` placed as
+/// [`try_remove_shear`] places a shear's result (`Crop` centring its rows on `pivot`), so a
+/// whole-image correction whose shear changes down the rows
+/// ([`RowShear`](crate::RowShear)) keeps the canvas the user asked for. With
+/// `shifts[y] = k (y - pivot)` it gives [`try_remove_shear`]'s pixels and placement.
+///
+/// # Errors
+/// [`Error::InvalidArgument`] when `shifts.len()` is not the image's height, a shift is not
+/// finite, or the canvas is impossible.
+pub fn try_shift_rows_on(
+    img: &DynamicImage,
+    shifts: &[f64],
+    pivot: f64,
+    interp: Interpolation,
+    canvas: Canvas,
+) -> Result<(DynamicImage, Placement)> {
+    let (out_w, out_h, placement) =
+        shifted_canvas(img.width(), img.height(), shifts, pivot, canvas)?;
+    let plan = Plan {
+        out_w: out_w as usize,
+        out_h: out_h as usize,
+        ox: placement.offset_x,
+        oy: placement.offset_y as usize,
+        rows: RowSource::Offsets {
+            table: shifts,
+            limit: 2.0 * f64::from(img.width().max(out_w)) + 8.0,
+        },
+    };
+    Ok((
+        per_variant!(img, |buf| warp_buffer(buf, &plan, interp)),
+        placement,
+    ))
 }
 
 /// `try_shift_rows` for a grey image, without wrapping it in a [`DynamicImage`] (which would

@@ -58,6 +58,71 @@ fn a_linear_ramp_is_the_shear_bit_for_bit() {
     assert_eq!(got, want);
 }
 
+#[test]
+fn shifts_on_a_canvas_are_the_shear_for_a_ramp_and_crop_leaves_no_fill() {
+    for (w, h) in [(64u32, 48u32), (37, 29)] {
+        let img = images(w, h).remove(1);
+        for k in [0.3, -0.37, 0.2113] {
+            for canvas in [Canvas::Same, Canvas::Expand, Canvas::Crop] {
+                let shear = Shear::about_middle(k, h);
+                let want =
+                    try_remove_shear(&img, shear, Interpolation::Cubic, canvas).expect("finite");
+                let pivot = f64::from(h) / 2.0;
+                let got = try_shift_rows_on(&img, &ramp(k, h), pivot, Interpolation::Cubic, canvas)
+                    .expect("finite");
+                assert!(got.0 == want.0, "{w}x{h} k={k} {canvas:?}");
+                assert_eq!(got.1, want.1, "{w}x{h} k={k} {canvas:?}");
+            }
+        }
+    }
+    // A bent table (the offsets of a shear going from 0.1 to 0.5 down the rows) cropped: every
+    // pixel of a white image stays white (no fill), and the expanded canvas holds every row.
+    let (w, h) = (80u32, 60u32);
+    let white = DynamicImage::ImageLuma8(GrayImage::from_pixel(w, h, Luma([255])));
+    let shifts: Vec<f64> = (0..h)
+        .map(|y| {
+            let t = f64::from(y) - 30.0;
+            0.3 * t + 0.2 * t * t / 60.0
+        })
+        .collect();
+    let (crop, at) = try_shift_rows_on(&white, &shifts, 30.0, Interpolation::Linear, Canvas::Crop)
+        .expect("a rectangle");
+    assert!(crop
+        .as_luma8()
+        .expect("grey")
+        .pixels()
+        .all(|p| p.0[0] == 255));
+    assert!(
+        crop.width() > 40 && crop.height() > 30,
+        "{}x{} {at:?}",
+        crop.width(),
+        crop.height()
+    );
+    let (expand, _) =
+        try_shift_rows_on(&white, &shifts, 30.0, Interpolation::Linear, Canvas::Expand)
+            .expect("a canvas");
+    let spread = shifts.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
+        - shifts.iter().cloned().fold(f64::INFINITY, f64::min);
+    assert!(f64::from(expand.width()) >= f64::from(w) + spread.floor());
+    let total: u64 = expand
+        .as_luma8()
+        .expect("grey")
+        .pixels()
+        .map(|p| u64::from(p.0[0]))
+        .sum();
+    // Every row's content is there: 80 white pixels per row, give or take the edges' blend.
+    let per_row = total as f64 / 255.0 / f64::from(h);
+    assert!((per_row - f64::from(w)).abs() < 1.0, "{per_row}");
+    assert!(try_shift_rows_on(
+        &white,
+        &shifts[1..],
+        30.0,
+        Interpolation::Linear,
+        Canvas::Crop
+    )
+    .is_err());
+}
+
 /// The centroid of `profile` in a window of `half` samples either side of `around`.
 fn centroid(profile: impl Fn(i64) -> f64, around: f64, half: i64) -> f64 {
     let c = around.round() as i64;

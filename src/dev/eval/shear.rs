@@ -308,6 +308,14 @@ pub struct ShearSample {
     /// (measured shear and roll undone), in eye distances: nose `x, y`, mouth `x, y`
     /// (`pipeline::confidence::face_layout`).
     pub layout: Option<[f64; 4]>,
+    /// The shear the image's correction applies at the face's eyes' row: the image's `k`, or
+    /// where the faces at different heights disagree ([`crate::RowShear`]) its value there.
+    pub image_k: Option<f64>,
+    /// The image's one shear from its faces without the change down the rows (the faces'
+    /// consensus), to compare with `image_k`.
+    pub image_k_one: Option<f64>,
+    /// Whether the image's shear changes down its rows.
+    pub bent: bool,
     /// Milliseconds the pipeline took on the whole image (detection included).
     pub millis: f64,
 }
@@ -734,6 +742,11 @@ fn run_one(
     let found = unshear.detect_and_estimate(&Unshear::gray(&sheared));
     let millis = start.elapsed().as_secs_f64() * 1e3;
     let moved = |p: Point| map.apply(in_view(p));
+    let (image_k_one, rows) = crate::pipeline::faces_shear(
+        found.iter().filter_map(|f| f.report).collect(),
+        sheared.height(),
+    );
+    let image_k_at = |y: f64| rows.map(|r| r.k_at(y)).or(image_k_one);
     let unmatched = found
         .iter()
         .filter_map(|found| {
@@ -819,6 +832,9 @@ fn run_one(
                     Some([(m.x - truth.x) / ed, (m.y - truth.y) / ed])
                 }),
                 oracle,
+                image_k: image_k_at(re.midpoint(le).y),
+                image_k_one,
+                bent: rows.is_some(),
                 refused: report.and_then(|d| d.refused.map(|r| r.name().to_string())),
                 box_outside: report
                     .map(|d| box_outside_share(d.face_box, sheared.width(), sheared.height())),
@@ -1079,6 +1095,7 @@ impl ShearEvalResult {
             pct(located.iter().filter(|&&e| e <= 0.25).count(), all),
         );
         self.blur_line(&mut s);
+        self.rows_line(&mut s);
         let mut times: Vec<f64> = self.samples.iter().map(|s| s.millis).collect();
         times.sort_by(f64::total_cmp);
         if let Some(m) = median(times) {
@@ -1119,6 +1136,55 @@ impl ShearEvalResult {
             pct(errors.len(), blurred.len()),
             fmt3(median(errors)),
             found.len(),
+        );
+    }
+
+    /// How the image's correction fares at its faces where faces at different heights bend the
+    /// rows' offsets ([`crate::RowShear`]), against one shear for the whole image; nothing when
+    /// no image bent.
+    fn rows_line(&self, s: &mut String) {
+        let bent: Vec<&ShearSample> = self
+            .samples
+            .iter()
+            .filter(|s| s.bent && !s.cut && s.detected)
+            .collect();
+        if bent.is_empty() {
+            return;
+        }
+        let images: std::collections::BTreeSet<(&str, u64)> = bent
+            .iter()
+            .map(|s| (s.image.as_str(), s.true_k.to_bits()))
+            .collect();
+        type Pick = fn(&ShearSample) -> Option<f64>;
+        let within = |pick: Pick| {
+            bent.iter()
+                .filter(|s| pick(s).is_some_and(|k| (k - s.local_k).abs() <= 0.05))
+                .count()
+        };
+        let errors = |pick: Pick| {
+            median(
+                bent.iter()
+                    .filter_map(|s| Some((pick(s)? - s.local_k).abs()))
+                    .collect(),
+            )
+        };
+        let (bent_k, one_k): (Pick, Pick) = (|s| s.image_k, |s| s.image_k_one);
+        let _ = writeln!(
+            s,
+            "Shear changing down the rows: {} of {} frames bent (faces at different heights disagreeing); at their {} found faces the correction's shear is within 0.05 of the shear at the face for {} ({:.1}%, median error {}) bent, {} ({:.1}%, median error {}) with one shear for the frame",
+            images.len(),
+            self.samples
+                .iter()
+                .map(|s| (s.image.as_str(), s.true_k.to_bits()))
+                .collect::<std::collections::BTreeSet<_>>()
+                .len(),
+            bent.len(),
+            within(bent_k),
+            pct(within(bent_k), bent.len()),
+            fmt3(errors(bent_k)),
+            within(one_k),
+            pct(within(one_k), bent.len()),
+            fmt3(errors(one_k)),
         );
     }
 
