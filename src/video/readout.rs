@@ -155,16 +155,6 @@ impl VelocityCurve {
         Self::fit_once(&kept, t0)
     }
 
-    /// [`Self::fit`] without dropping any sample: the same samples whatever they say (for
-    /// comparing fits under different readouts).
-    pub fn fit_all(samples: &[VelocitySample], t0: f64) -> Option<Self> {
-        let all: Vec<&VelocitySample> = samples.iter().collect();
-        if all.is_empty() {
-            return None;
-        }
-        Self::fit_once(&all, t0)
-    }
-
     fn fit_once(samples: &[&VelocitySample], t0: f64) -> Option<Self> {
         let (lo, hi) = samples
             .iter()
