@@ -266,12 +266,15 @@ impl RowSpectra {
             let (mut zeros, mut between) = (0.0, 0.0);
             let mut count = 0;
             for j in 1..=MAX_ZEROS {
-                let (zero, mid) = (j as f64 * step, (j as f64 + 0.5) * step);
-                if mid >= top {
+                let zero = j as f64 * step;
+                let (before, after) = (zero - 0.5 * step, zero + 0.5 * step);
+                if after >= top {
                     break;
                 }
+                // The spectrum between the zeros on both sides: the picture's own fall-off with
+                // frequency tilts the two alike, so it does not count as depth.
                 zeros += at(zero);
-                between += at(mid);
+                between += (at(before) + at(after)) / 2.0;
                 count += 1;
             }
             (count >= 2).then(|| (zeros - between) / f64::from(count))

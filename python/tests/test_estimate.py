@@ -310,7 +310,7 @@ def test_faces_at_different_heights_bend_the_rows(tmp_path: Path, faces: list[np
     unshear.write(path, img)
     (line,) = run_cli(["estimate", "--json", str(path)])
     assert_same(line, report)
-    again = u.estimate(u.correct(img, report))
+    again = u.estimate(u.correct(img, report=report))
     ks = [f.k for f in again.faces if f.k is not None]
     assert len(ks) == 2 and all(abs(k) < 0.05 for k in ks), ks
     assert again.k_rows is None

@@ -271,7 +271,9 @@ class Unshear:
 
         The shear is ``k`` when given, otherwise ``report``'s (from ``estimate`` on this image,
         to avoid estimating twice), otherwise estimated here. ``region="image"`` de-shears the
-        whole image about its middle row; ``"face"`` each face region with its own shear.
+        whole image about its middle row (each row by its own offset when the report's
+        ``k_rows`` says the shear changes down the rows and no ``k`` is given); ``"face"`` each
+        face region with its own shear.
         ``canvas``: ``"same"`` size, ``"expand"`` so nothing is cut off, or ``"crop"`` to valid
         pixels. ``interp``: ``"linear"`` or ``"cubic"``. ``blur``: a motion blur along the rows
         removed first, before the faces are read, its length in pixels (1 to 256) or ``"auto"``
