@@ -15,6 +15,8 @@ mod net;
 pub(crate) use crop::crop_shear;
 pub(crate) use crop::residual_from_crop_shear;
 pub use crop::CropFrame;
+#[cfg(feature = "dev")]
+pub(crate) use net::RUNS;
 pub use net::{LandmarkNet, NetOutput, Workspace};
 
 use crate::estimate::{shear_and_roll, yaw_corrected};
