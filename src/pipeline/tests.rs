@@ -2,8 +2,8 @@ use super::combine::{combined_shear, consensus, holds_eyes, most_confident_of_ov
 use super::face::BoxReading;
 use super::network_search::{
     first_crop_min_face, measured_view_min_width, network_windows, network_windows_desheared,
-    settle_unsure_faces, window_is_new, DoubtfulWindow, HIDING_MIN_CONFIDENCE,
-    WEAK_WINDOW_FIRST_CROP_SCORE, WEAK_WINDOW_LOGIT,
+    settle_unsure_faces, window_is_new, DoubtfulWindow, HIDING_MIN_CONFIDENCE, STRONG_WINDOW_LOGIT,
+    WEAK_WINDOW_FIRST_CROP_MIN_FACE,
 };
 use super::proposals::{proposal_detection, proposal_eyes, proposal_is_new, proposal_shows};
 use super::viola_jones_search::{
@@ -59,19 +59,20 @@ fn face(k: Option<f64>, confidence: f64) -> FaceReport {
 }
 
 #[test]
-fn only_a_weak_window_is_given_up_at_its_first_crop() {
-    assert_eq!(WEAK_WINDOW_LOGIT, 1.0);
-    assert_eq!(WEAK_WINDOW_FIRST_CROP_SCORE, 0.01);
-    // Under logit 1 (the detector's weak windows on clutter, and below 0), the bound.
-    for logit in [-3.0, 0.0, 0.5, 0.999] {
-        assert_eq!(first_crop_min_face(logit), WEAK_WINDOW_FIRST_CROP_SCORE);
+fn only_a_weak_window_is_given_up_at_a_first_crop_reading_under_0_1() {
+    use crate::locate::network::UNLIKELY_FACE_SCORE;
+    assert_eq!(WEAK_WINDOW_FIRST_CROP_MIN_FACE, UNLIKELY_FACE_SCORE);
+    // Under the strong windows' logit (the detector's weak windows on clutter, and below 0):
+    // under 0.1.
+    for logit in [-3.0, 0.0, 0.5, 1.0, 1.499] {
+        assert_eq!(first_crop_min_face(logit), WEAK_WINDOW_FIRST_CROP_MIN_FACE);
     }
-    // From 1, and for a face found before (the strongest logit), never.
-    for logit in [1.0, 1.5, 8.0, f32::INFINITY] {
+    // From it, and for a face found before (the strongest logit): never.
+    for logit in [STRONG_WINDOW_LOGIT, 8.0, f32::INFINITY] {
         assert_eq!(first_crop_min_face(logit), 0.0);
     }
     // Far below the face score a face needs, from any window.
-    assert!(WEAK_WINDOW_FIRST_CROP_SCORE < super::face::RETRY_MIN_FACE_SCORE);
+    const { assert!(WEAK_WINDOW_FIRST_CROP_MIN_FACE < super::face::RETRY_MIN_FACE_SCORE) };
 }
 
 #[test]
