@@ -13,7 +13,8 @@
 //! beside the synthetic grey-canvas frame in the same run as a baseline. Without
 //! `../shared/data` they say so and time the synthetic frame alone.
 //!
-//! Run: `cargo bench --bench pipeline` (the realistic rows alone: `-- realistic`).
+//! Run: `cargo bench --bench pipeline` (the realistic rows alone: `-- realistic`; with
+//! `--features dev` each frame's landmark network runs are printed too).
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use image::imageops::FilterType;
@@ -332,9 +333,19 @@ fn whole_frames(
         ) {
             panic!("writing {}: {e}", input.display());
         }
+        #[cfg(feature = "dev")]
+        let runs_before = unshear::internals::landmark_network_runs();
         let report = unshear.estimate(&scene.image);
+        // The landmark network's runs for the frame (counted with feature `dev` only).
+        #[cfg(feature = "dev")]
+        let runs = format!(
+            ", {} landmark network runs",
+            unshear::internals::landmark_network_runs() - runs_before
+        );
+        #[cfg(not(feature = "dev"))]
+        let runs = String::new();
         eprintln!(
-            "{}: {} face(s) found, {} accepted, k = {:?}",
+            "{}: {} face(s) found, {} accepted, k = {:?}{runs}",
             scene.name,
             report.faces.len(),
             report.faces.iter().filter(|f| f.k.is_some()).count(),

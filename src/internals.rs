@@ -29,3 +29,12 @@ pub fn fuse(
 ) -> (Option<f64>, Option<crate::ShearSource>, bool) {
     crate::pipeline::fuse(faces_k, faces, scene, ruler)
 }
+
+/// How many times the landmark network has run in this process so far, on every thread (each
+/// crop read as it is, and each mirrored reading, counts once): the difference across one
+/// [`Unshear::estimate`](crate::Unshear::estimate) is that frame's network runs, the measure
+/// of the windows' judging cost (`cargo bench --features dev --bench pipeline -- realistic`
+/// prints it per frame).
+pub fn landmark_network_runs() -> u64 {
+    crate::locate::network::RUNS.load(std::sync::atomic::Ordering::Relaxed)
+}

@@ -148,7 +148,7 @@ impl Unshear {
         if self.locator() == Locator::Network {
             let net = &self.network;
             return self
-                .network_reading(net, gray, face_box, start_k, roll, budget, false)
+                .network_reading(net, gray, face_box, start_k, roll, budget, false, 0.0)
                 .face();
         }
         let mut best = self.locate_and_estimate(gray, face_box, start_k, roll)?;
@@ -300,6 +300,20 @@ impl Unshear {
         start: FaceStart,
         turned: bool,
     ) -> BoxReading {
+        self.read_doubted_box(gray, face_box, start, turned, 0.0)
+    }
+
+    /// [`Self::read_box`] from a start in doubt: with the landmark network, the reading ends
+    /// at its first crop when that reads under `first_crop_min_face` as a face (see
+    /// [`network::locate_within`]; 0: as [`Self::read_box`]).
+    pub(crate) fn read_doubted_box(
+        &self,
+        gray: &GrayImage,
+        face_box: Rect,
+        start: FaceStart,
+        turned: bool,
+        first_crop_min_face: f64,
+    ) -> BoxReading {
         if self.locator() != Locator::Network {
             return self
                 .estimate_face(gray, face_box, start)
@@ -307,7 +321,9 @@ impl Unshear {
         }
         let budget = start.budget.unwrap_or(self.config.network_budget);
         let net = &self.network;
-        self.network_reading(net, gray, face_box, start.k, start.roll, budget, turned)
+        let (k, roll) = (start.k, start.roll);
+        let doubt = first_crop_min_face;
+        self.network_reading(net, gray, face_box, k, roll, budget, turned, doubt)
     }
 
     /// The landmark network's estimate for the face in `face_box` (turned by `roll` about its
@@ -316,7 +332,9 @@ impl Unshear {
     /// crops again around the eyes it finds until the estimate settles (which also takes care
     /// of a tilted head and a box of the wrong size, the filters' second searches). The
     /// nostrils are then found with the eye filter below the network's eyes.
-    /// With `turned`, the box is read from turned starts instead, as [`Self::read_box`] says.
+    /// With `turned`, the box is read from turned starts instead, as [`Self::read_box`] says;
+    /// with `first_crop_min_face` above 0, a first crop reading under it ends each walk
+    /// ([`network::locate_within`]).
     #[allow(clippy::too_many_arguments)]
     fn network_reading(
         &self,
@@ -327,6 +345,7 @@ impl Unshear {
         roll: f64,
         budget: Budget,
         turned: bool,
+        first_crop_min_face: f64,
     ) -> BoxReading {
         if !can_search(gray, face_box) || !start_k.is_finite() || !roll.is_finite() {
             return BoxReading::NoFace;
@@ -340,8 +359,10 @@ impl Unshear {
                 start_k,
                 roll,
             );
-            NET_WORKSPACE
-                .with(|ws| network::locate_within(net, gray, start, budget, &mut ws.borrow_mut()))
+            NET_WORKSPACE.with(|ws| {
+                let ws = &mut ws.borrow_mut();
+                network::locate_within(net, gray, start, budget, first_crop_min_face, ws)
+            })
         };
         let found = if turned {
             [RETRY_ROLL_DEGREES, -RETRY_ROLL_DEGREES]

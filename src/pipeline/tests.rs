@@ -1,8 +1,9 @@
 use super::combine::{combined_shear, consensus, holds_eyes, most_confident_of_overlapping};
 use super::face::BoxReading;
 use super::network_search::{
-    measured_view_min_width, network_windows, network_windows_desheared, settle_unsure_faces,
-    window_is_new, DoubtfulWindow, HIDING_MIN_CONFIDENCE,
+    first_crop_min_face, measured_view_min_width, network_windows, network_windows_desheared,
+    settle_unsure_faces, window_is_new, DoubtfulWindow, HIDING_MIN_CONFIDENCE, STRONG_WINDOW_LOGIT,
+    WEAK_WINDOW_FIRST_CROP_MIN_FACE,
 };
 use super::proposals::{proposal_detection, proposal_eyes, proposal_is_new, proposal_shows};
 use super::viola_jones_search::{
@@ -55,6 +56,23 @@ fn face(k: Option<f64>, confidence: f64) -> FaceReport {
         spread: None,
         face_score: None,
     }
+}
+
+#[test]
+fn only_a_weak_window_is_given_up_at_a_first_crop_reading_under_0_1() {
+    use crate::locate::network::UNLIKELY_FACE_SCORE;
+    assert_eq!(WEAK_WINDOW_FIRST_CROP_MIN_FACE, UNLIKELY_FACE_SCORE);
+    // Under the strong windows' logit (the detector's weak windows on clutter, and below 0):
+    // under 0.1.
+    for logit in [-3.0, 0.0, 0.5, 1.0, 1.499] {
+        assert_eq!(first_crop_min_face(logit), WEAK_WINDOW_FIRST_CROP_MIN_FACE);
+    }
+    // From it, and for a face found before (the strongest logit): never.
+    for logit in [STRONG_WINDOW_LOGIT, 8.0, f32::INFINITY] {
+        assert_eq!(first_crop_min_face(logit), 0.0);
+    }
+    // Far below the face score a face needs, from any window.
+    const { assert!(WEAK_WINDOW_FIRST_CROP_MIN_FACE < super::face::RETRY_MIN_FACE_SCORE) };
 }
 
 #[test]

@@ -15,6 +15,8 @@ mod net;
 pub(crate) use crop::crop_shear;
 pub(crate) use crop::residual_from_crop_shear;
 pub use crop::CropFrame;
+#[cfg(feature = "dev")]
+pub(crate) use net::RUNS;
 pub use net::{LandmarkNet, NetOutput, Workspace};
 
 use crate::estimate::{shear_and_roll, yaw_corrected};
@@ -183,6 +185,18 @@ pub(crate) const UNLIKELY_FACE_PASSES: usize = 2;
 /// The face score under which a crop counts as hardly a face for [`UNLIKELY_FACE_PASSES`].
 pub(crate) const UNLIKELY_FACE_SCORE: f64 = 0.1;
 
+/// Whether a walk of crops gives up on something that is not a face after crop `pass` (1 for
+/// the first), the best face score of its crops so far being `best_face_score`: after
+/// [`NO_FACE_PASSES`] crops all under [`NO_FACE_SCORE`], after [`UNLIKELY_FACE_PASSES`] all
+/// under [`UNLIKELY_FACE_SCORE`], or at the first crop when it reads under
+/// `first_crop_min_face` (the caller's doubt about the start, such as a detector window's;
+/// 0: no such doubt).
+fn gives_up(pass: usize, best_face_score: f64, first_crop_min_face: f64) -> bool {
+    (pass >= NO_FACE_PASSES && best_face_score < NO_FACE_SCORE)
+        || (pass >= UNLIKELY_FACE_PASSES && best_face_score < UNLIKELY_FACE_SCORE)
+        || (pass == 1 && best_face_score < first_crop_min_face)
+}
+
 /// The face score from which a crop read as it is is read again mirrored (with
 /// [`Budget::mirrored`]): the mirrored reading steadies the points of a face, while a crop
 /// reading under this is most often not one (a third of a cluttered frame's network runs).
@@ -263,7 +277,7 @@ pub(crate) fn locate(
     start: CropFrame,
     ws: &mut Workspace,
 ) -> Option<LocatedFace> {
-    locate_within(net, gray, start, Budget::STILL, ws)
+    locate_within(net, gray, start, Budget::STILL, 0.0, ws)
 }
 
 /// Locates the landmarks of the face that `start` frames (from a detector's box, or a previous
@@ -273,13 +287,15 @@ pub(crate) fn locate(
 /// crops (at least one, each rendered with at most its reads per pixel). The
 /// network then sees a nearly upright, unsheared face, the kind it reads best. A walk whose
 /// estimate stops closing in is ended too, and something that is not a face is given up on
-/// after three crops. `None` when a crop cannot be made or the network's reading is not
-/// finite.
+/// after two or three crops ([`gives_up`]), or after the first when a start in doubt (a detector
+/// window) reads under `first_crop_min_face` there (0: no such doubt). `None` when
+/// a crop cannot be made or the network's reading is not finite.
 pub(crate) fn locate_within(
     net: &LandmarkNet,
     gray: &image::GrayImage,
     start: CropFrame,
     budget: Budget,
+    first_crop_min_face: f64,
     ws: &mut Workspace,
 ) -> Option<LocatedFace> {
     let mut frame = start;
@@ -301,8 +317,7 @@ pub(crate) fn locate_within(
         let converged = change < budget.shear_tolerance
             && (face.roll - frame.roll).abs() < budget.roll_tolerance;
         best_face_score = best_face_score.max(face.face);
-        let no_face = (pass >= NO_FACE_PASSES && best_face_score < NO_FACE_SCORE)
-            || (pass >= UNLIKELY_FACE_PASSES && best_face_score < UNLIKELY_FACE_SCORE);
+        let no_face = gives_up(pass, best_face_score, first_crop_min_face);
         let stalled = stalled(pass, change, previous_change);
         previous_change = change;
         found = Some(face);
@@ -442,6 +457,42 @@ mod tests {
     }
 
     #[test]
+    fn a_walk_gives_up_on_what_reads_as_no_face() {
+        // Without doubt about the start: after three crops under 0.001, or two under 0.1.
+        assert!(!gives_up(1, 0.0, 0.0));
+        assert!(!gives_up(UNLIKELY_FACE_PASSES - 1, 0.0009, 0.0));
+        assert!(gives_up(UNLIKELY_FACE_PASSES, 0.099, 0.0));
+        assert!(!gives_up(UNLIKELY_FACE_PASSES, 0.1, 0.0));
+        assert!(gives_up(NO_FACE_PASSES, 0.0009, 0.0));
+        assert!(!gives_up(8, 0.5, 0.0));
+        // A doubted start ends at its first crop when that reads under the bound, and only
+        // at the first: from the second on, the usual rules.
+        assert!(gives_up(1, 0.009, 0.01));
+        assert!(!gives_up(1, 0.01, 0.01));
+        assert!(!gives_up(1, 0.5, 0.01));
+        assert!(gives_up(UNLIKELY_FACE_PASSES, 0.05, 0.01));
+        assert!(!gives_up(UNLIKELY_FACE_PASSES, 0.2, 0.01));
+    }
+
+    #[test]
+    fn a_doubted_start_on_a_face_is_followed_as_any() {
+        // The fixture face's first crop from the rough start reads as a face: the doubt
+        // changes nothing. On a flat grey picture the first crop ends the walk.
+        let net = LandmarkNet::embedded().expect("built-in network");
+        let start = rough_start(&net);
+        let mut ws = Workspace::default();
+        let gray = fixture_gray();
+        let face = locate(&net, &gray, start, &mut ws).expect("a face");
+        let doubted = locate_within(&net, &gray, start, Budget::STILL, 0.1, &mut ws);
+        assert_eq!(Some(face), doubted);
+        let flat = image::GrayImage::from_pixel(320, 240, image::Luma([128]));
+        let found =
+            locate_within(&net, &flat, start, Budget::STILL, 0.01, &mut ws).expect("a reading");
+        assert!(found.face < 0.01, "face score {}", found.face);
+        assert_eq!(found.passes, 1);
+    }
+
+    #[test]
     fn the_budget_limits_the_crops() {
         let net = LandmarkNet::embedded().expect("built-in network");
         let gray = fixture_gray();
@@ -449,14 +500,14 @@ mod tests {
         let mut ws = Workspace::default();
         let still = locate(&net, &gray, start, &mut ws).expect("a face");
         assert!(still.passes > 2, "{} crops", still.passes);
-        let video = locate_within(&net, &gray, start, Budget::VIDEO, &mut ws).expect("a face");
+        let video = locate_within(&net, &gray, start, Budget::VIDEO, 0.0, &mut ws).expect("a face");
         assert_eq!(video.passes, 2);
         let none = Budget {
             max_passes: 0,
             max_supersampling: 0,
             ..Budget::STILL
         };
-        let once = locate_within(&net, &gray, start, none, &mut ws).expect("a face");
+        let once = locate_within(&net, &gray, start, none, 0.0, &mut ws).expect("a face");
         assert_eq!(once.passes, 1, "at least one crop");
     }
 
@@ -481,14 +532,14 @@ mod tests {
             assert!(found.face < NO_FACE_SCORE, "face score {}", found.face);
             assert!(found.passes <= NO_FACE_PASSES, "{} crops", found.passes);
             // No crop read as a face, so none was read again mirrored.
-            let once = locate_within(&net, no_face, start, read_once, &mut ws);
+            let once = locate_within(&net, no_face, start, read_once, 0.0, &mut ws);
             assert_eq!(Some(found), once);
         }
         // A face from the same rough start is followed to the end (as in
         // `the_budget_limits_the_crops`), and scores as one; its crops are read mirrored too.
         let face = locate(&net, &fixture_gray(), start, &mut ws).expect("a face");
         assert!(face.face > 0.9, "face score {}", face.face);
-        let once = locate_within(&net, &fixture_gray(), start, read_once, &mut ws);
+        let once = locate_within(&net, &fixture_gray(), start, read_once, 0.0, &mut ws);
         assert_ne!(Some(face), once);
         // It stopped because its estimate settled, not because it was given up on.
         assert!(

@@ -16,6 +16,12 @@
 
 use serde::Deserialize;
 
+/// How many times [`LandmarkNet::run`] has run in this process, every network and thread
+/// together (a mirrored reading is a run of its own); feature `dev`, to count a frame's runs
+/// (`internals::landmark_network_runs`).
+#[cfg(feature = "dev")]
+pub(crate) static RUNS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+
 use crate::error::{Error, Result};
 use crate::geometry::Point;
 use crate::modelfile::ModelFile;
@@ -288,6 +294,8 @@ impl LandmarkNet {
     /// # Panics
     /// If `crop` does not hold `size * size` values (a caller's bug, not a data error).
     pub fn run(&self, crop: &[f32], ws: &mut Workspace) -> NetOutput {
+        #[cfg(feature = "dev")]
+        RUNS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let n = self.size;
         assert_eq!(crop.len(), n * n, "crop of the network's size");
         // Standardise as the trainer does: grey levels over 255, zero mean, unit spread (floor
