@@ -3,11 +3,11 @@
 //! over time; frames corrected row by row in their own colour layout.
 //!
 //! ```text
-//!                               ┌▶ MotionEstimator (bands) ─▶ VelocityCurve ─▶ RowMotion ─┐ k, row offsets
-//! y4m / frame folder ─▶ FrameSource                                  ▲ rho                   │
-//!                               └▶ FaceTracker ─▶ Unshear::estimate_face ─▶ ReadoutCalibrator  │
-//!                                                          └──────────▶ ShearSmoother ──────┤ k (faces)
-//!                 FrameSink ◀─ shift_rows / remove_shear_yuv (Y, U, V planes) ◀──────────────┘
+//!                               ┌▶ MotionEstimator (bands) ─▶ VelocitySpline ─▶ RowMotion ─┐ k, row offsets
+//! y4m / frame folder ─▶ FrameSource                                  ▲ rho                    │
+//!                               └▶ FaceTracker ─▶ Unshear::estimate_face ─▶ ReadoutCalibrator   │
+//!                                                          └──────────▶ ShearSmoother ───────┤ k (faces)
+//!                 FrameSink ◀─ shift_rows / remove_shear_yuv (Y, U, V planes) ◀───────────────┘
 //! ```
 //!
 //! * [`y4m`]: YUV4MPEG2 streams (files or pipes, e.g. `ffmpeg -f yuv4mpegpipe`), read with the

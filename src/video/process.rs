@@ -18,7 +18,7 @@ use super::readout::{
     VelocityCurve, VelocitySample,
 };
 use super::temporal::{FilterParams, ShearSmoother, Update, DEFAULT_SMOOTHING_LAG};
-use super::timing::{readout_from_motion, BandReading, MotionTiming};
+use super::timing::{readout_from_motion, BandReading, MotionTiming, VelocitySpline};
 use super::tracker::{FaceTracker, TrackerParams, TrackerStats};
 use super::VideoFrame;
 use crate::locate::network::Budget;
@@ -252,6 +252,11 @@ struct Pending {
 /// camera's readout is a constant, known well long before).
 const MAX_READINGS: usize = 4000;
 
+/// Frame pairs on each side of a frame whose bands the velocity through its readout is fitted
+/// to (see `VideoProcessor::row_motion`): 8 frame pairs in all, the pair before the frame's own
+/// two and one more than a swing of 6 frames' period spans on either side.
+const CURVE_PAIRS: u64 = 4;
+
 /// Frame pairs kept for the readout from the motion alone (30 s at 30 frames/s).
 const MAX_TIMING_PAIRS: usize = 900;
 
@@ -325,8 +330,9 @@ pub struct VideoProcessor<'a> {
     /// that.
     prev_shift: Option<FrameShift>,
     prev_prev_shift: Option<FrameShift>,
-    /// The displacement into the last frame returned, and its number.
-    emitted_before: Option<(u64, FrameShift)>,
+    /// The displacements into the last frames returned (at most [`CURVE_PAIRS`]), each with
+    /// its frame pair's first frame.
+    emitted: VecDeque<(u64, FrameShift)>,
     /// Every face reading for the readout's calibration, and the band displacements around
     /// the frames they were read in.
     readings: Vec<Reading>,
@@ -373,7 +379,7 @@ impl<'a> VideoProcessor<'a> {
             last_shift: None,
             prev_shift: None,
             prev_prev_shift: None,
-            emitted_before: None,
+            emitted: VecDeque::with_capacity(CURVE_PAIRS as usize),
             readings: Vec::new(),
             reading_bands: std::collections::HashMap::new(),
             fit: None,
@@ -1043,33 +1049,51 @@ impl<'a> VideoProcessor<'a> {
 
     /// The rolling shutter's row motion in `entry`'s frame, when the readout is known and the
     /// content's displacement around it was measured.
+    ///
+    /// The velocity through the frame's readout is one spline (the calibration's,
+    /// [`VelocitySpline`]) through the bands of up to [`CURVE_PAIRS`] frame pairs on each side
+    /// of the frame: the pairs of frames already returned, and those of the frames still held
+    /// (the smoothing's lag, or the whole clip on a second pass). With fewer than three frame
+    /// pairs at hand, a cubic about the frame ([`VelocityCurve`]).
     fn row_motion(&self, entry: &Pending, height: u32) -> Option<RowMotion> {
         let rho = self.rho.filter(|_| self.motion_model())?;
         let n = entry.result.index as f64;
         let index = entry.result.index;
-        // The displacements into and out of this frame, and one more on each side when at hand
-        // (the frame before's and the frame after's), so the curve can follow a speed that
-        // swings within a frame.
         let earlier = self
-            .emitted_before
-            .as_ref()
-            .filter(|(i, _)| i + 1 == index)
-            .map(|(_, s)| s);
+            .emitted
+            .iter()
+            .filter(|(pair, _)| pair + CURVE_PAIRS >= index && pair + 1 < index)
+            .map(|(pair, s)| (*pair as f64, Some(s)));
         let later = self
             .pending
-            .front()
-            .filter(|p| p.result.index == index + 1)
-            .and_then(|p| p.after.as_ref());
+            .iter()
+            .take_while(|p| p.result.index < index + CURVE_PAIRS)
+            .filter(|p| p.result.index > index)
+            .map(|p| (p.result.index as f64, p.after.as_ref()));
         let mut samples = Vec::new();
-        for (pair, shift) in [
-            (n - 2.0, earlier),
-            (n - 1.0, entry.before.as_ref()),
-            (n, entry.after.as_ref()),
-            (n + 1.0, later),
-        ] {
-            for b in shift.iter().flat_map(|s| &s.bands) {
+        let mut pairs = 0;
+        for (pair, shift) in earlier
+            .chain([(n - 1.0, entry.before.as_ref()), (n, entry.after.as_ref())])
+            .chain(later)
+        {
+            let Some(shift) = shift.filter(|s| !s.bands.is_empty()) else {
+                continue;
+            };
+            pairs += 1;
+            for b in &shift.bands {
                 samples.push(VelocitySample::from_band(
                     pair, b.row, b.dx, b.dy, b.sigma, rho, height,
+                ));
+            }
+        }
+        if pairs >= 3 {
+            if let Some(spline) = VelocitySpline::fit(&samples) {
+                return Some(RowMotion::of(
+                    &spline,
+                    n,
+                    rho,
+                    height,
+                    self.options.vertical,
                 ));
             }
         }
@@ -1141,7 +1165,12 @@ impl<'a> VideoProcessor<'a> {
             before,
             ..
         } = entry;
-        self.emitted_before = before.map(|b| (result.index, b));
+        if let Some(b) = before {
+            if self.emitted.len() >= CURVE_PAIRS as usize {
+                self.emitted.pop_front();
+            }
+            self.emitted.push_back((result.index.saturating_sub(1), b));
+        }
         self.face_motion(&mut result, height);
         result.k = k_smoothed;
         result.readout_fraction = self.rho;

@@ -254,6 +254,26 @@ fn solve(m: &[[f64; 4]; 4], r: &[f64; 4], n: usize) -> Option<[f64; 4]> {
     x.iter().all(|v| v.is_finite()).then_some(x)
 }
 
+/// The image velocity over time, what [`RowMotion`] integrates through a frame's readout: a
+/// [`VelocityCurve`] about one frame, or the spline over several frame pairs
+/// (`super::timing::VelocitySpline`).
+pub trait VelocityModel {
+    /// The velocity at time `t`, `(vx, vy)` pixels per frame.
+    fn velocity(&self, t: f64) -> (f64, f64);
+    /// How far content moves from time `from` to time `to`, `(dx, dy)` pixels.
+    fn displacement(&self, from: f64, to: f64) -> (f64, f64);
+}
+
+impl VelocityModel for VelocityCurve {
+    fn velocity(&self, t: f64) -> (f64, f64) {
+        VelocityCurve::velocity(self, t)
+    }
+
+    fn displacement(&self, from: f64, to: f64) -> (f64, f64) {
+        VelocityCurve::displacement(self, from, to)
+    }
+}
+
 /// The rolling shutter's effect on one frame, from the image velocity through its readout.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RowMotion {
@@ -275,7 +295,7 @@ pub struct RowMotion {
 impl RowMotion {
     /// The frame `n` of `height` rows read out over `rho` of the frame interval, seen through
     /// `curve`; `vertical` also works out the rows' vertical resampling.
-    pub fn of(curve: &VelocityCurve, n: f64, rho: f64, height: u32, vertical: bool) -> Self {
+    pub fn of(curve: &impl VelocityModel, n: f64, rho: f64, height: u32, vertical: bool) -> Self {
         let h = f64::from(height.max(1));
         let mid = row_time(n, h / 2.0, rho, height);
         let velocity = curve.velocity(mid);
