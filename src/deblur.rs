@@ -286,8 +286,7 @@ impl RowSpectra {
             .map(|i| MIN_FOUND_BLUR + 0.25 * i as f64)
             .filter_map(|l| depth(l).map(|d| (l, d)))
             .min_by(|a, b| a.1.total_cmp(&b.1));
-        best.filter(|&(_, d)| d <= -MIN_ZERO_DEPTH)
-            .map(|(l, _)| l)
+        best.filter(|&(_, d)| d <= -MIN_ZERO_DEPTH).map(|(l, _)| l)
     }
 }
 
