@@ -282,11 +282,12 @@ impl RowSpectra {
             (count >= 2).then(|| (zeros - between) / f64::from(count))
         };
         let steps = ((max.min(MAX_BLUR) - MIN_FOUND_BLUR) / 0.25).floor() as usize;
-        let best = (0..=steps)
+        (0..=steps)
             .map(|i| MIN_FOUND_BLUR + 0.25 * i as f64)
             .filter_map(|l| depth(l).map(|d| (l, d)))
-            .min_by(|a, b| a.1.total_cmp(&b.1));
-        best.filter(|&(_, d)| d <= -MIN_ZERO_DEPTH).map(|(l, _)| l)
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .filter(|&(_, d)| d <= -MIN_ZERO_DEPTH)
+            .map(|(l, _)| l)
     }
 }
 

@@ -46,9 +46,9 @@ impl Unshear {
     /// Undoes the shear found in `report` (or `options.k`) on `img` (equation 6).
     ///
     /// Whole image: rows shifted by `-k (y - H/2)`, or each by its own offset when the report's
-    /// shear changes down the rows ([`ImageReport::row_shear`], unless `options.k` is given). Faces: each face region (its box enlarged by
-    /// 30% of its size each way) de-sheared about its own centre with its own `k`, feathered into the
-    /// untouched surroundings. A report read out by columns ([`Readout::Columns`]) is undone
+    /// shear changes down the rows ([`ImageReport::row_shear`], unless `options.k` is given).
+    /// Faces: each face region (its box enlarged by 30% of its size each way) de-sheared about
+    /// its own centre with its own `k`, feathered into the untouched surroundings. A report read out by columns ([`Readout::Columns`]) is undone
     /// along the columns: the same warp on the transposed image, columns shifted by
     /// `-k (x - W/2)`. Fails with [`Error::InvalidArgument`] when there is no shear to apply
     /// (no face and no `options.k`) or the shear is not finite. It needs no models (the report
@@ -86,9 +86,7 @@ impl Unshear {
                     Some(length) => {
                         // The blur is removed from the rows as read, before they are moved.
                         let mut copy = img.clone();
-                        let lengths = vec![length; img.height() as usize];
-                        let nsr = crate::deblur::DEFAULT_NOISE_TO_SIGNAL;
-                        crate::deblur::deblur_image(&mut copy, &lengths, nsr)?;
+                        Self::remove_blur(&mut copy, Some(length))?;
                         sharp = copy;
                         &sharp
                     }
