@@ -597,6 +597,15 @@ pub struct EvalVideoArgs {
     /// Seed of the face choice, the noise and the shake.
     #[arg(long, value_name = "N", default_value_t = 1)]
     pub seed: u64,
+    /// How each clip is run, comma-separated: calibrated (the default two passes over a file),
+    /// one-pass (as on a pipe), given (the true readout), faces (--no-motion).
+    #[arg(
+        long,
+        value_name = "MODE,...",
+        value_delimiter = ',',
+        default_value = "calibrated,one-pass,given,faces"
+    )]
+    pub modes: Vec<String>,
     /// Also write one JSON line per clip and mode to this file.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,

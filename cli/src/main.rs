@@ -802,7 +802,7 @@ fn progress_bar(len: u64) -> indicatif::ProgressBar {
 
 fn eval_video(a: EvalVideoArgs) -> Result<()> {
     use unshear::dev::dataset::{CaltechWebFaces, FaceDataset};
-    use unshear::dev::eval::video::{evaluate_video, MotionKind, VideoEvalOptions};
+    use unshear::dev::eval::video::{evaluate_video, Mode, MotionKind, VideoEvalOptions};
     use unshear::dev::simulate::{development_faces, Scene, ScenePhoto};
     let motions = a
         .motion
@@ -814,6 +814,20 @@ fn eval_video(a: EvalVideoArgs) -> Result<()> {
                 .unwrap_or_else(|| {
                     usage_error(&format!(
                         "--motion {m}: not one of constant, pause, accelerate, shaky, walk"
+                    ))
+                })
+        })
+        .collect();
+    let modes = a
+        .modes
+        .iter()
+        .map(|m| {
+            Mode::ALL
+                .into_iter()
+                .find(|k| k.key() == m.trim())
+                .unwrap_or_else(|| {
+                    usage_error(&format!(
+                        "--modes {m}: not one of calibrated, one-pass, given, faces"
                     ))
                 })
         })
@@ -834,6 +848,7 @@ fn eval_video(a: EvalVideoArgs) -> Result<()> {
         clips: a.clips,
         skip: a.skip,
         seed: a.seed,
+        modes,
         ..VideoEvalOptions::default()
     };
     let unshear = load_models(&a.model, Config::video())?;

@@ -472,7 +472,6 @@ impl ReadoutCalibrator {
         tracks.dedup();
         let index = |t: u64| tracks.binary_search(&t).unwrap_or(0);
         let mut rho = 0.0;
-        let mut info = 0.0;
         for _ in 0..8 {
             // Per track: A = sum W + lambda, P = sum W rate, Q = sum W k.
             let mut sums = vec![(lambda, 0.0f64, 0.0f64); tracks.len()];
@@ -487,7 +486,7 @@ impl ReadoutCalibrator {
                 wrr += w * s.rate * s.rate;
             }
             let num = wrk - sums.iter().map(|t| t.1 * t.2 / t.0).sum::<f64>();
-            info = wrr - sums.iter().map(|t| t.1 * t.1 / t.0).sum::<f64>();
+            let info = wrr - sums.iter().map(|t| t.1 * t.1 / t.0).sum::<f64>();
             if info <= 1e-12 {
                 return None;
             }
@@ -524,9 +523,24 @@ impl ReadoutCalibrator {
         let n = self.samples.len() as f64;
         let dof = (n - 1.0 - tracks.len() as f64 * (1.0 - lambda.min(1.0))).max(1.0);
         let variance = (ss / wsum.max(1e-12) * n / dof).max((0.1 * p.reading_noise).powi(2));
-        // `info` is in units of the weights: a reading of weight 1 and rate r adds r^2.
+        // The information about `rho` with the biases marginalised, in units of the weights (a
+        // reading of weight 1 and rate r adds r^2), the bias prior weighed against the readings'
+        // noise as measured, not as assumed: when a track's readings agree closely, only the
+        // prior on its bias tells its bias from `rho` (a steady pan), and the uncertainty must
+        // stay that of the prior, bias_spread / rate / sqrt(tracks).
         let mean_weight = wsum / n;
-        let uncertainty = (variance / (info / mean_weight)).sqrt();
+        let lambda_seen = variance * mean_weight / p.bias_spread.powi(2);
+        let wrr: f64 = self
+            .samples
+            .iter()
+            .zip(&huber)
+            .map(|(s, h)| s.weight * h * s.rate * s.rate)
+            .sum();
+        let shrunk: f64 = sums
+            .iter()
+            .map(|t| t.1 * t.1 / (t.0 - lambda + lambda_seen))
+            .sum();
+        let uncertainty = (variance * mean_weight / (wrr - shrunk).max(1e-12)).sqrt();
         let used = huber.iter().filter(|&&h| h > 0.5).count();
         let mut frames: Vec<u64> = self.samples.iter().map(|s| s.frame).collect();
         frames.sort_unstable();
@@ -722,5 +736,33 @@ mod tests {
         let c = calibrator_with(0.8, |_, _| 0.25 / 0.8, 6, 5, 11);
         let fit = c.solve().unwrap();
         assert!(fit.uncertainty > 0.02, "{fit:?}");
+    }
+
+    #[test]
+    fn a_steady_pans_uncertainty_is_the_bias_priors_however_steady_the_readings() {
+        // Six faces at one speed, each read almost without noise (0.002) along its track, as a
+        // simulated pan gives: the readings' agreement must not shrink what the prior leaves
+        // unknown, bias_spread / rate / sqrt(tracks).
+        let (rho, rate, tracks) = (1.0, 0.3, 6);
+        let mut rng = SplitMix64::new(3);
+        let mut c = ReadoutCalibrator::new(CalibrationParams::default());
+        for t in 0..tracks {
+            let bias = rng.symmetric(0.04);
+            for f in 0..15 {
+                c.add(ShearSample {
+                    track: t,
+                    frame: t * 15 + f,
+                    k: rho * rate + bias + rng.symmetric(0.002),
+                    rate,
+                    weight: 1.0,
+                });
+            }
+        }
+        let fit = c.solve().unwrap();
+        let prior = CalibrationParams::default().bias_spread / rate / (tracks as f64).sqrt();
+        assert!(
+            fit.uncertainty > 0.7 * prior && fit.uncertainty < 1.3 * prior,
+            "{fit:?} against {prior}"
+        );
     }
 }

@@ -100,6 +100,8 @@ pub struct VideoEvalOptions {
     pub calibration_window: usize,
     /// Seed of the noise and the shake.
     pub seed: u64,
+    /// How each clip is run, in table order.
+    pub modes: Vec<Mode>,
 }
 
 impl Default for VideoEvalOptions {
@@ -123,6 +125,7 @@ impl Default for VideoEvalOptions {
             skip: 30,
             calibration_window: crate::video::DEFAULT_CALIBRATION_WINDOW,
             seed: 1,
+            modes: Mode::ALL.to_vec(),
         }
     }
 }
@@ -131,8 +134,13 @@ impl Default for VideoEvalOptions {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Mode {
-    /// `unshear video`'s default: the readout calibrated on the clip, then `k` from motion.
+    /// `unshear video`'s default on a file: the readout calibrated over the whole clip in a
+    /// first pass, then every frame's `k` from motion.
     Calibrated,
+    /// As `unshear video` runs on a pipe (or with `--one-pass`): the readout calibrated while
+    /// correcting, the faces deciding until it is known.
+    #[serde(rename = "one-pass")]
+    OnePass,
     /// The true readout fraction given.
     Given,
     /// The faces alone (`--no-motion`).
@@ -141,11 +149,22 @@ pub enum Mode {
 
 impl Mode {
     /// Every mode, in table order.
-    pub const ALL: [Mode; 3] = [Mode::Calibrated, Mode::Given, Mode::Faces];
+    pub const ALL: [Mode; 4] = [Mode::Calibrated, Mode::OnePass, Mode::Given, Mode::Faces];
+
+    /// The mode's name on the command line (`eval video --modes`).
+    pub fn key(self) -> &'static str {
+        match self {
+            Mode::Calibrated => "calibrated",
+            Mode::OnePass => "one-pass",
+            Mode::Given => "given",
+            Mode::Faces => "faces",
+        }
+    }
 
     fn name(self) -> &'static str {
         match self {
             Mode::Calibrated => "motion, readout calibrated (default)",
+            Mode::OnePass => "motion, readout calibrated in one pass (a pipe)",
             Mode::Given => "motion, readout given",
             Mode::Faces => "faces alone (`--no-motion`)",
         }
@@ -188,7 +207,7 @@ pub struct ClipResult {
     /// What a single shear per frame leaves at best (the truth's `k` as a line), pixels, like
     /// [`ModeRun::residuals`].
     pub line_residuals: Vec<f64>,
-    /// The runs, in [`Mode::ALL`] order.
+    /// The runs, in [`VideoEvalOptions::modes`] order.
     pub runs: Vec<ModeRun>,
 }
 
@@ -268,7 +287,7 @@ fn run_clip(
         }
     }
     let mut runs = Vec::new();
-    for mode in Mode::ALL {
+    for &mode in &options.modes {
         let process = ProcessOptions {
             tracker: TrackerParams::for_detector(unshear.uses_network_detector()),
             filter: FilterParams::default().with_times(0.5, 1.0, options.fps),
@@ -395,7 +414,7 @@ impl VideoEvalResult {
         }
         let _ = writeln!(
             out,
-            "| motion | rho | clips | frames scored | mode | k within 0.01 | within 0.03 | median abs error | no face in view: within 0.01 | residual row offset median / p95 (px) | single shear at best: median / p95 (px) | rho found (worst error) | frames/s |"
+            "| motion | rho | clips | frames scored | mode | k within 0.01 | within 0.03 | median abs error | no face in view: within 0.01 | residual row offset median / p95 (px) | single shear at best: median / p95 (px) | rho found (worst error, in stated sigmas) | frames/s |"
         );
         let _ = writeln!(
             out,
@@ -411,8 +430,17 @@ impl VideoEvalResult {
                 .iter()
                 .flat_map(|c| c.line_residuals.clone())
                 .collect();
-            for (i, mode) in Mode::ALL.iter().enumerate() {
-                let runs: Vec<&ModeRun> = clips.iter().filter_map(|c| c.runs.get(i)).collect();
+            let mut modes: Vec<Mode> = Vec::new();
+            for r in clips.iter().flat_map(|c| &c.runs) {
+                if !modes.contains(&r.mode) {
+                    modes.push(r.mode);
+                }
+            }
+            for mode in modes {
+                let runs: Vec<&ModeRun> = clips
+                    .iter()
+                    .flat_map(|c| c.runs.iter().filter(|r| r.mode == mode))
+                    .collect();
                 let errors: Vec<f64> = runs.iter().flat_map(|r| r.k_errors.clone()).collect();
                 let faceless: Vec<f64> = runs
                     .iter()
@@ -427,17 +455,29 @@ impl VideoEvalResult {
                 let residuals: Vec<f64> = runs.iter().flat_map(|r| r.residuals.clone()).collect();
                 let abs: Vec<f64> = errors.iter().map(|e| e.abs()).collect();
                 let rho_found = match mode {
-                    Mode::Calibrated => {
-                        let found: Vec<f64> =
-                            runs.iter().filter_map(|r| r.readout_fraction).collect();
+                    Mode::Calibrated | Mode::OnePass => {
+                        let found: Vec<(f64, Option<f64>)> = runs
+                            .iter()
+                            .filter_map(|r| r.readout_fraction.map(|f| (f, r.readout_uncertainty)))
+                            .collect();
                         let worst = found
                             .iter()
-                            .map(|f| (f - rho).abs() / rho)
+                            .map(|(f, _)| (f - rho).abs() / rho)
+                            .fold(0.0, f64::max);
+                        // The error in units of the stated uncertainty: about 1 when it is fair.
+                        let sigmas = found
+                            .iter()
+                            .filter_map(|(f, u)| u.map(|u| (f - rho).abs() / u.max(1e-12)))
                             .fold(0.0, f64::max);
                         if found.is_empty() {
                             "not found".to_string()
                         } else {
-                            format!("{} of {} ({:.1}%)", found.len(), runs.len(), 100.0 * worst)
+                            format!(
+                                "{} of {} ({:.1}%, {sigmas:.1} sigma)",
+                                found.len(),
+                                runs.len(),
+                                100.0 * worst
+                            )
                         }
                     }
                     Mode::Given => "given".into(),
