@@ -650,10 +650,12 @@ fn video_or_calibrate(a: VideoArgs, calibrate: Option<bool>) -> Result<bool> {
             json,
         ));
     }
-    // A file is read twice: the readout calibrated over the whole clip, then every frame
-    // corrected with it. A pipe is read once, calibrating while correcting.
+    // A file is read twice: the readout (or the exposure, when the blur is to be removed
+    // and the exposure is not given) found over the whole clip, then every frame corrected
+    // with it, the first ones included. A pipe is read once, finding them while correcting.
+    let exposure_wanted = deblur.is_some_and(|d| d.exposure.is_none());
     let two_pass = !a.one_pass
-        && readout_fraction.is_none()
+        && (readout_fraction.is_none() || exposure_wanted)
         && !a.no_motion
         && rotation == 0
         && !is_stdio(&a.input);

@@ -660,4 +660,25 @@ fn deblur_on_the_command_line() {
     // 4 ms at 30 frames/s is 0.12 of the frame interval.
     let blur = lines[3]["blur"].as_f64().expect("blur reported");
     assert!((blur - 0.12 * v).abs() < 0.1 * 0.12 * v, "{blur}");
+    // The exposure estimated from a file: found over the whole clip in a first pass, so the
+    // first frames are deblurred too, not only those after enough blur was seen.
+    let out = unshear_cmd()
+        .args([
+            "video",
+            "--json",
+            "--readout-fraction",
+            "0.8",
+            "--deblur",
+            "--force",
+            "-o",
+        ])
+        .arg(&out_clip)
+        .arg(&clip)
+        .assert()
+        .success();
+    let lines = common::json_lines(&out.get_output().stdout);
+    let first = lines[1]["blur"]
+        .as_f64()
+        .expect("the second frame deblurred");
+    assert!((first - 0.12 * v).abs() < 0.1 * 0.12 * v, "{first}");
 }
