@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-/// The README's example photo: the CLI estimates k = +0.316.
+/// The README's example photo: the CLI estimates k = 0.3175 (JSON; +0.317 in its sentence).
 fn example() -> PathBuf {
     PathBuf::from(concat!(
         env!("CARGO_MANIFEST_DIR"),
@@ -247,13 +247,13 @@ fn cli_estimate(path: &Path) -> serde_json::Value {
     common::json_lines(&out.stdout).remove(0)
 }
 
-/// The estimate of the example through the API is the CLI's object (the same `k`, +0.316, and
+/// The estimate of the example through the API is the CLI's object (the same `k`, 0.3175, and
 /// every other field but the file's name), sent raw or as a form.
 #[test]
 fn the_example_estimates_as_with_the_cli() {
     let server = Server::start(&[]);
     let cli = cli_estimate(&example());
-    assert_eq!(format!("{:+.3}", cli["k"].as_f64().expect("k")), "+0.316");
+    assert_eq!(format!("{:+.3}", cli["k"].as_f64().expect("k")), "+0.318");
     let raw = server.post("/api/estimate?name=face.png", "image/png", &example_bytes());
     assert_eq!(raw.status, 200, "{}", raw.text());
     let mut api = raw.json();
@@ -282,7 +282,7 @@ fn the_example_estimates_as_with_the_cli() {
     assert!(page["description"]
         .as_str()
         .expect("description")
-        .starts_with("k = +0.316"));
+        .starts_with("k = +0.317"));
     assert!(page["annotated"]
         .as_str()
         .expect("annotated")
@@ -299,7 +299,7 @@ fn correct_and_annotate_return_images() {
     let r = server.post("/api/correct?name=dir/face.png", "image/png", &bytes);
     assert_eq!(r.status, 200, "{}", r.text());
     assert_eq!(r.header("content-type"), Some("image/png"));
-    assert_eq!(r.header("x-unshear-k"), Some("0.3161"));
+    assert_eq!(r.header("x-unshear-k"), Some("0.3175"));
     assert_eq!(
         r.header("content-disposition"),
         Some("attachment; filename=\"face.unshear.png\"")
@@ -321,7 +321,7 @@ fn correct_and_annotate_return_images() {
     let a = server.post("/api/annotate", "image/png", &bytes);
     assert_eq!(a.status, 200, "{}", a.text());
     assert_eq!(a.header("content-type"), Some("image/png"));
-    assert_eq!(a.header("x-unshear-k"), Some("0.3161"));
+    assert_eq!(a.header("x-unshear-k"), Some("0.3175"));
     let annotated = image::load_from_memory(&a.body).expect("a PNG");
     assert_eq!(
         (annotated.width(), annotated.height()),
@@ -517,7 +517,7 @@ fn path_names_in_form_fields_are_only_labels() {
     assert_eq!(r.json()["file"], "written-by-server.png");
     assert_eq!(
         format!("{:+.3}", r.json()["k"].as_f64().expect("k")),
-        "+0.316"
+        "+0.318"
     );
     // The name parameter: the same.
     let r = server.post("/api/correct?name=%2Fetc%2Fpasswd", "image/png", &bytes);
@@ -564,8 +564,8 @@ fn eight_concurrent_clients_are_all_answered() {
         for (status, k, r) in c.join().expect("client") {
             assert_eq!(status, 200, "{}", r.text());
             match k {
-                Some(k) => assert_eq!(k, "0.3161"),
-                None => assert_eq!(r.json()["k"], 0.3161),
+                Some(k) => assert_eq!(k, "0.3175"),
+                None => assert_eq!(r.json()["k"], 0.3175),
             }
             answered += 1;
         }
@@ -640,7 +640,7 @@ fn the_page_is_built_in() {
 }
 
 /// Headless Chromium opens `/?demo=example`: the page puts the bundled example through the API
-/// and shows the CLI's k, +0.316; a screenshot of it is made. `/?demo=bad`: a photo without a
+/// and shows the CLI's k, +0.318 (0.3175); a screenshot of it is made. `/?demo=bad`: a photo without a
 /// face and a text file each get their message.
 #[test]
 fn the_page_shows_the_clis_k_in_a_browser() {
@@ -685,8 +685,8 @@ fn the_page_shows_the_clis_k_in_a_browser() {
     };
     let dom = browser(&["--dump-dom"], "example");
     assert!(
-        dom.contains("data-k=\"+0.316\">k = +0.316<"),
-        "the page shows k = +0.316: {dom}"
+        dom.contains("data-k=\"+0.318\">k = +0.318<"),
+        "the page shows k = +0.318: {dom}"
     );
     let shot = dir.path().join("page.png");
     browser(&[&format!("--screenshot={}", shot.display())], "example");
@@ -812,7 +812,7 @@ fn measure_start_12_megapixels_and_load() {
                             Some(k) => k.to_string(),
                             None => format!("{:.4}", r.json()["k"].as_f64().expect("k")),
                         };
-                        assert_eq!(k, "0.3161");
+                        assert_eq!(k, "0.3175");
                     }
                 })
             })

@@ -10,7 +10,7 @@ const HTML: &str = include_str!("page.html");
 const SCRIPT: &str = include_str!("page.js");
 /// `page.css`: the page's styles.
 const STYLE: &str = include_str!("page.css");
-/// The README's example: a face sheared by k = 0.30 (the CLI estimates +0.316).
+/// The README's example: a face sheared by k = 0.30 (the CLI estimates 0.3175).
 const EXAMPLE: &[u8] = include_bytes!("../../../assets/example/face-k0.30.png");
 
 /// A built-in file with its type; the browser revalidates nothing (the binary is the version).
