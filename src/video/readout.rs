@@ -512,13 +512,14 @@ impl ReadoutCalibrator {
             }
             sums
         };
-        let (mut ss, mut wsum) = (0.0, 0.0);
+        let (mut ss, mut wsum, mut wrr) = (0.0, 0.0, 0.0);
         for (s, h) in self.samples.iter().zip(&huber) {
             let t = sums[index(s.track)];
             let bias = (t.2 - rho * t.1) / t.0;
             let w = s.weight * h;
             ss += w * (s.k - rho * s.rate - bias).powi(2);
             wsum += w;
+            wrr += w * s.rate * s.rate;
         }
         let n = self.samples.len() as f64;
         let dof = (n - 1.0 - tracks.len() as f64 * (1.0 - lambda.min(1.0))).max(1.0);
@@ -530,12 +531,6 @@ impl ReadoutCalibrator {
         // stay that of the prior, bias_spread / rate / sqrt(tracks).
         let mean_weight = wsum / n;
         let lambda_seen = variance * mean_weight / p.bias_spread.powi(2);
-        let wrr: f64 = self
-            .samples
-            .iter()
-            .zip(&huber)
-            .map(|(s, h)| s.weight * h * s.rate * s.rate)
-            .sum();
         let shrunk: f64 = sums
             .iter()
             .map(|t| t.1 * t.1 / (t.0 - lambda + lambda_seen))

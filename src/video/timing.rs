@@ -417,10 +417,7 @@ pub(crate) fn readout_from_motion(bands: &[BandReading], height: u32) -> Option<
         .filter(|b| b.dx.is_finite() && b.dy.is_finite() && b.sigma.is_finite())
         .collect();
     sorted.sort_by(|a, b| a.pair.cmp(&b.pair).then(a.row.total_cmp(&b.row)));
-    let stretches: Vec<&[BandReading]> = sorted
-        .chunk_by(|a, b| b.pair - a.pair <= MAX_PAIR_STEP)
-        .filter(|s| s.chunk_by(|a, b| a.pair == b.pair).count() >= MIN_STRETCH)
-        .collect();
+    let stretches = stretches(&sorted);
     let (rho, uncertainty, n) = best_fit(&stretches, height, 0.0)?;
     let (other, other_uncertainty, _) = best_fit(&stretches, height, KNOT_SPACING / 2.0)?;
     let spread = jackknife(&sorted, height, rho).unwrap_or(0.0);
@@ -432,6 +429,15 @@ pub(crate) fn readout_from_motion(bands: &[BandReading], height: u32) -> Option<
             .hypot(rho - other),
         pairs: n / 8,
     })
+}
+
+/// The runs of `sorted` (sorted by pair) whose frame pairs are at most [`MAX_PAIR_STEP`] apart,
+/// those of at least [`MIN_STRETCH`] frame pairs: each gets a spline of its own.
+fn stretches(sorted: &[BandReading]) -> Vec<&[BandReading]> {
+    sorted
+        .chunk_by(|a, b| b.pair - a.pair <= MAX_PAIR_STEP)
+        .filter(|s| s.chunk_by(|a, b| a.pair == b.pair).count() >= MIN_STRETCH)
+        .collect()
 }
 
 /// Blocks of consecutive frame pairs left out in turn by [`jackknife`].
@@ -461,10 +467,7 @@ fn jackknife(sorted: &[BandReading], height: u32, rho: f64) -> Option<f64> {
         );
         kept.clear();
         kept.extend(sorted.iter().filter(|b| b.pair < lo || b.pair > hi));
-        let stretches: Vec<&[BandReading]> = kept
-            .chunk_by(|a, b| b.pair - a.pair <= MAX_PAIR_STEP)
-            .filter(|s| s.chunk_by(|a, b| a.pair == b.pair).count() >= MIN_STRETCH)
-            .collect();
+        let stretches = stretches(&kept);
         let cost = |r: f64| misfit(&stretches, r, height, 0.0).0;
         found.push(golden_minimum(cost, rho - 0.1, rho + 0.1, 16)?);
     }

@@ -396,6 +396,7 @@ fn read_face(
 mod tests {
     use super::*;
 
+    /// The committed Yale fixture face, grey.
     fn fixture_gray() -> image::GrayImage {
         let path = concat!(
             env!("CARGO_MANIFEST_DIR"),
